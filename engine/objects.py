@@ -1,0 +1,101 @@
+"""Objects people interact with: primitive shapes, their anchors and signed distance.
+
+An object's local frame has its origin at the centre of its footprint on the floor (so a pose
+with y = 0 rests on the ground), +Y up. `size` is the bounding box (width x, height y, depth z).
+Anchors are the grasp points (handles, table edges), in the local frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .rotations import quat_to_matrix
+
+OBJECT_TYPES = ("box", "table", "canister")
+DEFAULT_SIZES = {"box": (0.45, 0.35, 0.35), "table": (1.2, 0.74, 0.7), "canister": (0.3, 0.5, 0.3)}
+TABLE_TOP = 0.05  # table-top thickness in metres
+TABLE_LEG = 0.05  # square leg width
+
+
+@dataclass
+class ObjectSpec:
+    type: str = "box"
+    size: tuple[float, float, float] = DEFAULT_SIZES["box"]
+    anchors: np.ndarray | None = None  # (K, 3) local; None = the type's default grasp points
+
+    def __post_init__(self):
+        if self.type not in OBJECT_TYPES:
+            raise ValueError(f"unknown object type {self.type!r}; expected one of {OBJECT_TYPES}")
+        self.size = tuple(float(s) for s in self.size)
+        if self.anchors is None:
+            self.anchors = default_anchors(self.type, self.size)
+        self.anchors = np.asarray(self.anchors, dtype=np.float64).reshape(-1, 3)
+
+    def mesh(self):
+        """A trimesh.Trimesh of the shape in its local frame."""
+        import trimesh
+        w, h, d = self.size
+        if self.type == "box":
+            return trimesh.creation.box((w, h, d), trimesh.transformations.translation_matrix((0, h / 2, 0)))
+        if self.type == "canister":
+            m = trimesh.creation.cylinder(radius=min(w, d) / 2, height=h, sections=24)
+            m.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, (1, 0, 0)))
+            m.apply_translation((0, h / 2, 0))
+            return m
+        parts = [trimesh.creation.box((w, TABLE_TOP, d), trimesh.transformations.translation_matrix(
+            (0, h - TABLE_TOP / 2, 0)))]
+        for sx in (-1, 1):
+            for sz in (-1, 1):
+                c = (sx * (w / 2 - TABLE_LEG), (h - TABLE_TOP) / 2, sz * (d / 2 - TABLE_LEG))
+                parts.append(trimesh.creation.box((TABLE_LEG, h - TABLE_TOP, TABLE_LEG),
+                                                  trimesh.transformations.translation_matrix(c)))
+        return trimesh.util.concatenate(parts)
+
+    def sdf_local(self, p: np.ndarray) -> np.ndarray:
+        """Signed distance (negative inside) of local points (..., 3) -> (...)."""
+        w, h, d = self.size
+        if self.type == "box":
+            return _box_sdf(p - (0, h / 2, 0), (w / 2, h / 2, d / 2))
+        if self.type == "canister":
+            q = p - (0, h / 2, 0)
+            radial = np.linalg.norm(q[..., [0, 2]], axis=-1) - min(w, d) / 2
+            vertical = np.abs(q[..., 1]) - h / 2
+            outside = np.linalg.norm(np.stack([np.maximum(radial, 0), np.maximum(vertical, 0)], -1), axis=-1)
+            return outside + np.minimum(np.maximum(radial, vertical), 0)
+        top = _box_sdf(p - (0, h - TABLE_TOP / 2, 0), (w / 2, TABLE_TOP / 2, d / 2))
+        legs = [_box_sdf(p - (sx * (w / 2 - TABLE_LEG), (h - TABLE_TOP) / 2, sz * (d / 2 - TABLE_LEG)),
+                         (TABLE_LEG / 2, (h - TABLE_TOP) / 2, TABLE_LEG / 2))
+                for sx in (-1, 1) for sz in (-1, 1)]
+        return np.minimum(top, np.min(np.stack(legs), axis=0))
+
+    def sdf_world(self, p: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """Signed distance of world points (..., P, 3) to the object at pose (..., 7) -> (..., P)."""
+        return self.sdf_local(world_to_local(p, pose))
+
+
+def _box_sdf(q: np.ndarray, half: tuple[float, float, float]) -> np.ndarray:
+    d = np.abs(q) - np.asarray(half)
+    return np.linalg.norm(np.maximum(d, 0), axis=-1) + np.minimum(np.max(d, axis=-1), 0)
+
+
+def default_anchors(kind: str, size: tuple[float, float, float]) -> np.ndarray:
+    """Grasp points: the left and right handles (x = -/+), plus far edge points for a table."""
+    w, h, d = size
+    if kind == "table":  # under the table-top edge, at the two short ends
+        y = h - TABLE_TOP
+        return np.array([[-w / 2, y, 0.0], [w / 2, y, 0.0]])
+    if kind == "canister":
+        return np.array([[-w / 2, 0.7 * h, 0.0], [w / 2, 0.7 * h, 0.0]])
+    return np.array([[-w / 2, 0.5 * h, 0.0], [w / 2, 0.5 * h, 0.0]])
+
+
+def local_to_world(p: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Local points (..., P, 3) under pose (..., 7: xyz + wxyz) -> world (..., P, 3)."""
+    R = quat_to_matrix(pose[..., 3:])
+    return np.einsum("...ij,...pj->...pi", R, p) + pose[..., None, :3]
+
+
+def world_to_local(p: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    R = quat_to_matrix(pose[..., 3:])
+    return np.einsum("...ji,...pj->...pi", R, p - pose[..., None, :3])

@@ -1,0 +1,131 @@
+"""Rotation representations: matrices, the continuous 6D form, quaternions, axis-angle.
+
+All functions take numpy arrays with arbitrary leading batch dimensions.
+6D convention (Zhou et al. 2019): the first two *columns* of the rotation matrix,
+concatenated as [c0x, c0y, c0z, c1x, c1y, c1z]. Quaternions are (w, x, y, z).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+_EPS = 1e-9
+
+
+def normalize(v: np.ndarray, axis: int = -1) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=axis, keepdims=True), _EPS)
+
+
+def matrix_to_6d(R: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) -> (..., 6)."""
+    return np.concatenate([R[..., :, 0], R[..., :, 1]], axis=-1)
+
+
+def sixd_to_matrix(d6: np.ndarray) -> np.ndarray:
+    """(..., 6) -> (..., 3, 3) by Gram-Schmidt; any non-degenerate 6D vector maps to a rotation."""
+    a1, a2 = d6[..., :3], d6[..., 3:]
+    b1 = normalize(a1)
+    b2 = normalize(a2 - np.sum(b1 * a2, axis=-1, keepdims=True) * b1)
+    b3 = np.cross(b1, b2)
+    return np.stack([b1, b2, b3], axis=-1)
+
+
+def axis_angle_to_matrix(aa: np.ndarray) -> np.ndarray:
+    """Rodrigues: (..., 3) rotation vectors -> (..., 3, 3)."""
+    angle = np.linalg.norm(aa, axis=-1, keepdims=True)
+    axis = aa / np.maximum(angle, _EPS)
+    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
+    zero = np.zeros_like(x)
+    K = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], axis=-1).reshape(aa.shape[:-1] + (3, 3))
+    s, c = np.sin(angle)[..., None], np.cos(angle)[..., None]
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + s * K + (1 - c) * (K @ K)
+
+
+def euler_to_matrix(angles_deg: np.ndarray, order: str) -> np.ndarray:
+    """Intrinsic rotations in the given axis order, e.g. 'ZXY' as BVH channels list them.
+
+    angles_deg: (..., len(order)) in degrees -> (..., 3, 3) = R_order[0] @ R_order[1] @ ...
+    """
+    R = np.broadcast_to(np.eye(3), angles_deg.shape[:-1] + (3, 3)).copy()
+    for i, ax in enumerate(order.upper()):
+        aa = np.zeros(angles_deg.shape[:-1] + (3,))
+        aa[..., "XYZ".index(ax)] = np.deg2rad(angles_deg[..., i])
+        R = R @ axis_angle_to_matrix(aa)
+    return R
+
+
+def matrix_to_euler(R: np.ndarray, order: str) -> np.ndarray:
+    """Inverse of euler_to_matrix for a proper 3-axis Tait-Bryan order. (..., 3, 3) -> (..., 3) degrees."""
+    i, j, k = ("XYZ".index(a) for a in order.upper())
+    # Sign of the permutation decides the signs in the closed form.
+    sign = 1.0 if (j - i) % 3 == 1 else -1.0
+    sb = np.clip(sign * R[..., i, k], -1.0, 1.0)
+    b = np.arcsin(sb)
+    a = np.arctan2(-sign * R[..., j, k], R[..., k, k])
+    c = np.arctan2(-sign * R[..., i, j], R[..., i, i])
+    return np.rad2deg(np.stack([a, b, c], axis=-1))
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(..., 4) wxyz (normalised here) -> (..., 3, 3)."""
+    w, x, y, z = np.moveaxis(normalize(q), -1, 0)
+    return np.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+    ], axis=-1).reshape(q.shape[:-1] + (3, 3))
+
+
+def matrix_to_quat(R: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) -> (..., 4) wxyz with w >= 0 (numerically stable branch per element)."""
+    m = R.reshape(-1, 3, 3)
+    tr = np.trace(m, axis1=1, axis2=2)
+    cands = np.stack([tr, m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]], axis=1)
+    best = np.argmax(cands, axis=1)
+    q = np.empty((m.shape[0], 4))
+    for b in range(4):
+        sel = best == b
+        if not np.any(sel):
+            continue
+        r = m[sel]
+        if b == 0:
+            s = np.sqrt(1.0 + tr[sel]) * 2
+            q[sel] = np.stack([0.25 * s, (r[:, 2, 1] - r[:, 1, 2]) / s,
+                               (r[:, 0, 2] - r[:, 2, 0]) / s, (r[:, 1, 0] - r[:, 0, 1]) / s], 1)
+        else:
+            i = b - 1
+            j, k = (i + 1) % 3, (i + 2) % 3
+            s = np.sqrt(np.maximum(1.0 + r[:, i, i] - r[:, j, j] - r[:, k, k], _EPS)) * 2
+            out = np.empty((r.shape[0], 4))
+            out[:, 0] = (r[:, k, j] - r[:, j, k]) / s
+            out[:, 1 + i] = 0.25 * s
+            out[:, 1 + j] = (r[:, j, i] + r[:, i, j]) / s
+            out[:, 1 + k] = (r[:, k, i] + r[:, i, k]) / s
+            q[sel] = out
+    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    return normalize(q).reshape(R.shape[:-2] + (4,))
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Smallest rotation taking direction a to direction b. (..., 3), (..., 3) -> (..., 3, 3)."""
+    a, b = normalize(a), normalize(b)
+    axis = np.cross(a, b)
+    s = np.linalg.norm(axis, axis=-1, keepdims=True)
+    c = np.sum(a * b, axis=-1, keepdims=True)
+    angle = np.arctan2(s, c)
+    # Antiparallel: rotate by pi about any axis perpendicular to a.
+    anti = (s[..., 0] < 1e-8) & (c[..., 0] < 0)
+    if np.any(anti):
+        helper = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
+        axis = np.where(anti[..., None], np.cross(a, helper), axis)
+    return axis_angle_to_matrix(normalize(axis) * angle)
+
+
+def kabsch(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Rotation R minimising sum |R src_i - dst_i|^2. src, dst: (..., P, 3) -> (..., 3, 3)."""
+    H = np.swapaxes(src, -1, -2) @ dst
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(np.swapaxes(Vt, -1, -2) @ np.swapaxes(U, -1, -2)))
+    D = np.broadcast_to(np.eye(3), H.shape).copy()
+    D[..., 2, 2] = d
+    return np.swapaxes(Vt, -1, -2) @ D @ np.swapaxes(U, -1, -2)

@@ -1,0 +1,1 @@
+"""Inference: energies on decoded motion, the guided streaming sampler and its events."""

@@ -1,0 +1,148 @@
+"""The 22-joint SMPL body: names, hierarchy, neutral rest skeleton, forward and inverse kinematics.
+
+World conventions for the whole project (stated once, here): units are metres, Y is up, the
+ground is the plane y = 0, a person in rest pose faces +Z and their left is +X. Time is counted
+in frames at the clip's fps.
+
+A pose is a root translation (3,) plus one local rotation per joint (22, 3, 3); the root's local
+rotation is its global orientation. Bone offsets (22, 3) are each joint's position relative to
+its parent in the parent's rest frame; the template below is a neutral adult, and imported
+people get their own offsets (same directions, their bone lengths) from `fit_offsets`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .rotations import kabsch, normalize, rotation_between
+
+JOINT_NAMES = (
+    "pelvis", "l_hip", "r_hip", "spine1", "l_knee", "r_knee", "spine2", "l_ankle", "r_ankle",
+    "spine3", "l_foot", "r_foot", "neck", "l_collar", "r_collar", "head", "l_shoulder",
+    "r_shoulder", "l_elbow", "r_elbow", "l_wrist", "r_wrist",
+)
+PARENTS = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19)
+NUM_JOINTS = 22
+JOINT_INDEX = {name: i for i, name in enumerate(JOINT_NAMES)}
+CHILDREN = tuple(tuple(c for c, p in enumerate(PARENTS) if p == j) for j in range(NUM_JOINTS))
+# Left/right swap used for mirroring poses.
+MIRROR = tuple(JOINT_INDEX[n.replace("l_", "#").replace("r_", "l_").replace("#", "r_")]
+               for n in JOINT_NAMES)
+HANDS = (JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"])
+FEET = (JOINT_INDEX["l_foot"], JOINT_INDEX["r_foot"])
+ANKLES = (JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"])
+
+# Neutral rest skeleton (T-pose) as parent-relative offsets in metres.
+_HALF = {  # left side; the right side mirrors x
+    "l_hip": (0.070, -0.090, 0.000), "l_knee": (0.035, -0.380, 0.000),
+    "l_ankle": (-0.010, -0.400, -0.040), "l_foot": (0.030, -0.060, 0.130),
+    "l_collar": (0.075, 0.120, -0.030), "l_shoulder": (0.110, 0.045, -0.010),
+    "l_elbow": (0.260, -0.015, -0.020), "l_wrist": (0.250, 0.005, 0.000),
+}
+_SPINE = {
+    "pelvis": (0.0, 0.0, 0.0), "spine1": (0.0, 0.110, -0.020), "spine2": (0.0, 0.135, 0.010),
+    "spine3": (0.0, 0.055, 0.025), "neck": (0.0, 0.215, -0.040), "head": (0.0, 0.065, 0.050),
+}
+
+
+def _template_offsets() -> np.ndarray:
+    out = np.zeros((NUM_JOINTS, 3))
+    for name, off in _SPINE.items():
+        out[JOINT_INDEX[name]] = off
+    for name, off in _HALF.items():
+        out[JOINT_INDEX[name]] = off
+        out[JOINT_INDEX["r_" + name[2:]]] = (-off[0], off[1], off[2])
+    return out
+
+
+REST_OFFSETS = _template_offsets()
+# Pelvis height at which the rest pose's feet touch the ground (foot joint 2 cm up).
+REST_PELVIS_HEIGHT = 0.95
+
+
+def rest_pose(offsets: np.ndarray = REST_OFFSETS) -> np.ndarray:
+    """Joint positions (22, 3) of the rest pose standing on the ground at the origin."""
+    return forward_kinematics(np.array([0.0, REST_PELVIS_HEIGHT, 0.0]),
+                              np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3)), offsets)
+
+
+def bone_lengths(joints: np.ndarray) -> np.ndarray:
+    """(..., 22, 3) -> (..., 22); the root's entry is 0."""
+    par = np.array([max(p, 0) for p in PARENTS])
+    return np.linalg.norm(joints - joints[..., par, :], axis=-1)
+
+
+def global_rotations(local_rot: np.ndarray) -> np.ndarray:
+    """Compose local rotations down the tree. (..., 22, 3, 3) -> (..., 22, 3, 3)."""
+    glob = [None] * NUM_JOINTS
+    for j, p in enumerate(PARENTS):
+        glob[j] = local_rot[..., j, :, :] if p < 0 else glob[p] @ local_rot[..., j, :, :]
+    return np.stack(glob, axis=-3)
+
+
+def forward_kinematics(root: np.ndarray, local_rot: np.ndarray,
+                       offsets: np.ndarray = REST_OFFSETS) -> np.ndarray:
+    """Joint positions from a pose.
+
+    root: (..., 3) pelvis position; local_rot: (..., 22, 3, 3); offsets: (22, 3) or (..., 22, 3).
+    Returns (..., 22, 3).
+    """
+    glob = global_rotations(local_rot)
+    offsets = np.broadcast_to(offsets, local_rot.shape[:-2] + (3,))
+    pos = [None] * NUM_JOINTS
+    for j, p in enumerate(PARENTS):
+        pos[j] = root if p < 0 else pos[p] + np.einsum("...ij,...j->...i", glob[..., p, :, :], offsets[..., j, :])
+    return np.stack(pos, axis=-2)
+
+
+def _child_targets(joints: np.ndarray, j: int) -> np.ndarray:
+    return np.stack([joints[..., c, :] - joints[..., j, :] for c in CHILDREN[j]], axis=-2)
+
+
+def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS) -> np.ndarray:
+    """Local rotations that make FK(joints[pelvis], R, offsets) reproduce `joints`.
+
+    joints: (..., 22, 3). Returns local rotations (..., 22, 3, 3).
+    Joints with one child get the smallest rotation (no twist) that points the bone at the
+    child; joints with several children (pelvis, spine3) get the Kabsch fit of all child
+    bones; leaf joints get the identity. Exact when bone geometry matches `offsets`.
+    """
+    offsets = np.broadcast_to(offsets, joints.shape)
+    lead = joints.shape[:-2]
+    glob = [None] * NUM_JOINTS
+    local = np.broadcast_to(np.eye(3), lead + (NUM_JOINTS, 3, 3)).copy()
+    for j, p in enumerate(PARENTS):
+        parent_glob = np.broadcast_to(np.eye(3), lead + (3, 3)) if p < 0 else glob[p]
+        kids = CHILDREN[j]
+        if not kids:
+            glob[j] = parent_glob
+            continue
+        # Child bone directions expressed in the parent's frame (undo the parent's rotation).
+        target = np.einsum("...ji,...kj->...ki", parent_glob, _child_targets(joints, j))
+        rest = np.stack([offsets[..., c, :] for c in kids], axis=-2)
+        if len(kids) == 1:
+            R_local = rotation_between(rest[..., 0, :], target[..., 0, :])
+        else:
+            R_local = kabsch(rest, target)
+        local[..., j, :, :] = R_local
+        glob[j] = parent_glob @ R_local
+    return local
+
+
+def fit_offsets(joints: np.ndarray, iterations: int = 3) -> np.ndarray:
+    """Per-person bone offsets (22, 3) for a clip of joint positions (N, 22, 3).
+
+    Bone lengths are the clip's medians; single-child bones keep the template direction;
+    the children of branching joints (pelvis, spine3) are re-estimated in their parent's
+    local frame so that FK(IK(joints)) reproduces the clip's rigid branch geometry.
+    """
+    lengths = np.median(bone_lengths(joints), axis=0)
+    offsets = normalize(REST_OFFSETS) * lengths[:, None]
+    offsets[0] = 0.0
+    branching = [j for j in range(NUM_JOINTS) if len(CHILDREN[j]) > 1]
+    for _ in range(iterations):
+        glob = global_rotations(inverse_kinematics(joints, offsets))
+        for j in branching:
+            for c in CHILDREN[j]:
+                local = np.einsum("nji,nj->ni", glob[:, j], joints[:, c] - joints[:, j])
+                offsets[c] = np.mean(local, axis=0)
+    return offsets

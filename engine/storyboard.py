@@ -1,0 +1,353 @@
+"""The storyboard: what the artist sketches, its versioned JSON file format, and validation.
+
+Coordinates are sketch-plane metres (see camera.py); frames are 0-based indices into a clip of
+`length` frames at `fps`. The JSON Schema is storyboard.schema.json beside this file; the format
+is described in docs/storyboard.md. Every problem with a file surfaces as a StoryboardError whose
+message names the field, e.g. "keyposes[2].points: expected 22 joints, got 21".
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .camera import StoryboardCamera
+from .objects import DEFAULT_SIZES, ObjectSpec
+from .skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
+
+FORMAT = "sketch2colab-storyboard"
+VERSION = 1
+HANDS = ("left", "right")
+AGENT_COLORS = ("#e4572e", "#2e86ab", "#76b041", "#9b5de5")
+
+
+class StoryboardError(ValueError):
+    """A storyboard that cannot be used; str() is one line naming the offending field."""
+
+
+@dataclass
+class Agent:
+    id: str
+    name: str = ""
+    color: str = ""
+
+
+@dataclass
+class SceneObject:
+    id: str
+    spec: ObjectSpec = field(default_factory=ObjectSpec)
+
+
+@dataclass
+class Keypose:
+    agent: str
+    frame: int
+    points: np.ndarray  # (22, 2); rows where mask is False are ignored
+    mask: np.ndarray    # (22,) bool: which joints the artist placed
+
+
+@dataclass
+class Trajectory:
+    agent: str
+    joint: str
+    start: int
+    end: int
+    points: np.ndarray  # (L, 2) polyline, L >= 2
+
+
+@dataclass
+class ObjectKey:
+    object: str
+    frame: int
+    outline: np.ndarray  # (L, 2) closed polygon (a box is its 4 corners)
+
+
+@dataclass
+class ObjectPath:
+    object: str
+    start: int
+    end: int
+    points: np.ndarray  # (L, 2)
+
+
+@dataclass
+class Contact:
+    """`agent`'s `hand` holds `object`'s anchor, or `other_agent`'s `other_hand`, over [start, end]."""
+    agent: str
+    hand: str
+    start: int
+    end: int
+    object: str | None = None
+    anchor: int = 0
+    other_agent: str | None = None
+    other_hand: str = "right"
+
+
+@dataclass
+class Storyboard:
+    fps: float = 20.0
+    length: int = 120
+    camera: StoryboardCamera = field(default_factory=StoryboardCamera)
+    agents: list[Agent] = field(default_factory=list)
+    objects: list[SceneObject] = field(default_factory=list)
+    keyposes: list[Keypose] = field(default_factory=list)
+    trajectories: list[Trajectory] = field(default_factory=list)
+    object_keys: list[ObjectKey] = field(default_factory=list)
+    object_paths: list[ObjectPath] = field(default_factory=list)
+    contacts: list[Contact] = field(default_factory=list)
+    text: str = ""
+
+    # ---- lookups -------------------------------------------------------------------------
+    def agent_index(self, agent_id: str) -> int:
+        return [a.id for a in self.agents].index(agent_id)
+
+    def object_index(self, object_id: str) -> int:
+        return [o.id for o in self.objects].index(object_id)
+
+    def keyframes(self) -> list[int]:
+        """Sorted frames that carry at least one keypose or object key."""
+        return sorted({k.frame for k in self.keyposes} | {k.frame for k in self.object_keys})
+
+    def chi_mask(self) -> np.ndarray:
+        """The paper's joint-conditioning indicator chi: (N, H, 22) bool, True where joint j of
+        human h is constrained at frame n by a keypose or a trajectory."""
+        chi = np.zeros((self.length, len(self.agents), NUM_JOINTS), dtype=bool)
+        for k in self.keyposes:
+            chi[k.frame, self.agent_index(k.agent)] |= k.mask
+        for t in self.trajectories:
+            chi[t.start:t.end + 1, self.agent_index(t.agent), JOINT_INDEX[t.joint]] = True
+        return chi
+
+    # ---- file format ---------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        d = {"format": FORMAT, "version": VERSION, "fps": self.fps, "length": self.length,
+             "camera": self.camera.to_dict(),
+             "agents": [{"id": a.id, "name": a.name, "color": a.color} for a in self.agents],
+             "objects": [{"id": o.id, "type": o.spec.type, "size": list(o.spec.size),
+                          "anchors": _round(o.spec.anchors)} for o in self.objects],
+             "keyposes": [{"agent": k.agent, "frame": k.frame,
+                           "points": [_round(p) if m else None for p, m in zip(k.points, k.mask)]}
+                          for k in self.keyposes],
+             "trajectories": [{"agent": t.agent, "joint": t.joint, "start": t.start, "end": t.end,
+                               "points": _round(t.points)} for t in self.trajectories],
+             "object_keys": [{"object": k.object, "frame": k.frame, "outline": _round(k.outline)}
+                             for k in self.object_keys],
+             "object_paths": [{"object": p.object, "start": p.start, "end": p.end,
+                               "points": _round(p.points)} for p in self.object_paths],
+             "contacts": [_contact_dict(c) for c in self.contacts]}
+        if self.text:
+            d["text"] = self.text
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=1) + "\n"
+
+    def save(self, path: str | Path) -> None:
+        """Write atomically: a crash mid-save never leaves a half-written storyboard."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(self.to_json())
+        tmp.replace(path)
+
+    @classmethod
+    def from_dict(cls, d) -> "Storyboard":
+        _check_finite(d, "")
+        _validate_schema(d)
+        sb = cls(fps=float(d["fps"]), length=int(d["length"]), text=d.get("text", ""),
+                 camera=StoryboardCamera.from_dict(d["camera"]))
+        sb.agents = [Agent(a["id"], a.get("name", ""), a.get("color") or AGENT_COLORS[i % 4])
+                     for i, a in enumerate(d["agents"])]
+        for i, o in enumerate(d.get("objects", [])):
+            size = tuple(o.get("size", DEFAULT_SIZES[o["type"]]))
+            anchors = np.array(o["anchors"], float).reshape(-1, 3) if "anchors" in o else None
+            sb.objects.append(SceneObject(o["id"], ObjectSpec(o["type"], size, anchors)))
+        for i, k in enumerate(d.get("keyposes", [])):
+            mask = np.array([p is not None for p in k["points"]])
+            pts = np.array([p if p is not None else (0.0, 0.0) for p in k["points"]], float)
+            sb.keyposes.append(Keypose(k["agent"], k["frame"], pts, mask))
+        for t in d.get("trajectories", []):
+            sb.trajectories.append(Trajectory(t["agent"], t["joint"], t["start"], t["end"],
+                                              np.array(t["points"], float).reshape(-1, 2)))
+        for k in d.get("object_keys", []):
+            sb.object_keys.append(ObjectKey(k["object"], k["frame"], np.array(k["outline"], float).reshape(-1, 2)))
+        for p in d.get("object_paths", []):
+            sb.object_paths.append(ObjectPath(p["object"], p["start"], p["end"],
+                                              np.array(p["points"], float).reshape(-1, 2)))
+        for c in d.get("contacts", []):
+            sb.contacts.append(Contact(c["agent"], c["hand"], c["start"], c["end"], c.get("object"),
+                                       c.get("anchor", 0), c.get("other_agent"), c.get("other_hand", "right")))
+        sb.validate()
+        return sb
+
+    @classmethod
+    def from_json(cls, text: str) -> "Storyboard":
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise StoryboardError(f"malformed JSON at line {e.lineno}, column {e.colno}: {e.msg}") from None
+        return cls.from_dict(d)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Storyboard":
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as e:
+            raise StoryboardError(f"cannot read {path}: {e}") from None
+        return cls.from_json(text)
+
+    # ---- semantic checks -----------------------------------------------------------------
+    def validate(self) -> None:
+        """Raise StoryboardError for the first inconsistency (references, frames, strokes)."""
+        agents = _unique([a.id for a in self.agents], "agents")
+        objects = _unique([o.id for o in self.objects], "objects")
+        n = self.length
+
+        def frame(where: str, f: int) -> None:
+            if not 0 <= f < n:
+                raise StoryboardError(f"{where}: frame {f} is outside the clip (0..{n - 1})")
+
+        def ref(where: str, value: str, known: list[str], what: str) -> None:
+            if value not in known:
+                raise StoryboardError(f"{where}: unknown {what} {value!r} (known: {', '.join(known) or 'none'})")
+
+        def span(where: str, start: int, end: int) -> None:
+            frame(f"{where}.start", start)
+            frame(f"{where}.end", end)
+            if end < start:
+                raise StoryboardError(f"{where}: end frame {end} is before start frame {start}")
+
+        def stroke(where: str, pts: np.ndarray, minimum: int) -> None:
+            if len(pts) < minimum:
+                raise StoryboardError(f"{where}: empty stroke ({len(pts)} point{'s' * (len(pts) != 1)}, "
+                                      f"need at least {minimum})")
+
+        for i, k in enumerate(self.keyposes):
+            w = f"keyposes[{i}]"
+            ref(f"{w}.agent", k.agent, agents, "agent")
+            frame(f"{w}.frame", k.frame)
+            if k.points.shape != (NUM_JOINTS, 2):
+                raise StoryboardError(f"{w}.points: expected {NUM_JOINTS} joints, got {len(k.points)}")
+            if not k.mask.any():
+                raise StoryboardError(f"{w}.points: no joint is placed")
+        for i, t in enumerate(self.trajectories):
+            w = f"trajectories[{i}]"
+            ref(f"{w}.agent", t.agent, agents, "agent")
+            ref(f"{w}.joint", t.joint, list(JOINT_NAMES), "joint")
+            span(w, t.start, t.end)
+            stroke(f"{w}.points", t.points, 2)
+        for i, k in enumerate(self.object_keys):
+            w = f"object_keys[{i}]"
+            ref(f"{w}.object", k.object, objects, "object")
+            frame(f"{w}.frame", k.frame)
+            stroke(f"{w}.outline", k.outline, 3)
+        for i, p in enumerate(self.object_paths):
+            w = f"object_paths[{i}]"
+            ref(f"{w}.object", p.object, objects, "object")
+            span(w, p.start, p.end)
+            stroke(f"{w}.points", p.points, 2)
+        for i, c in enumerate(self.contacts):
+            w = f"contacts[{i}]"
+            ref(f"{w}.agent", c.agent, agents, "agent")
+            span(w, c.start, c.end)
+            if (c.object is None) == (c.other_agent is None):
+                raise StoryboardError(f"{w}: give exactly one of 'object' or 'other_agent'")
+            if c.object is not None:
+                ref(f"{w}.object", c.object, objects, "object")
+                count = len(self.objects[self.object_index(c.object)].spec.anchors)
+                if not 0 <= c.anchor < count:
+                    raise StoryboardError(f"{w}.anchor: object {c.object!r} has {count} anchors, "
+                                          f"anchor {c.anchor} does not exist")
+            else:
+                ref(f"{w}.other_agent", c.other_agent, agents, "agent")
+                if c.other_agent == c.agent:
+                    raise StoryboardError(f"{w}.other_agent: an agent cannot hold its own hand")
+
+
+def nu(k: float, length: int) -> int:
+    """The paper's keyframe-to-frame map nu(k) = 1 + round(k (N - 1) / N), here 0-based:
+    a storyboard location k in [0, N] -> frame index in [0, N - 1]."""
+    return int(round(k * (length - 1) / length))
+
+
+def _round(a) -> list:
+    """Arrays to lists of floats with 6 decimals (micrometres): stable, diff-friendly files."""
+    return np.round(np.asarray(a, float), 6).tolist()
+
+
+def _contact_dict(c: Contact) -> dict:
+    d = {"agent": c.agent, "hand": c.hand, "start": c.start, "end": c.end}
+    if c.object is not None:
+        d.update(object=c.object, anchor=c.anchor)
+    else:
+        d.update(other_agent=c.other_agent, other_hand=c.other_hand)
+    return d
+
+
+def _unique(ids: list[str], where: str) -> list[str]:
+    seen = set()
+    for i, x in enumerate(ids):
+        if x in seen:
+            raise StoryboardError(f"{where}[{i}].id: duplicate id {x!r}")
+        seen.add(x)
+    return ids
+
+
+@lru_cache(maxsize=1)
+def schema() -> dict:
+    return json.loads((Path(__file__).with_name("storyboard.schema.json")).read_text())
+
+
+def _validate_schema(d) -> None:
+    import jsonschema
+    if not isinstance(d, dict):
+        raise StoryboardError("storyboard: the file must hold a JSON object")
+    validator = jsonschema.Draft202012Validator(schema())
+    errors = sorted(validator.iter_errors(d), key=lambda e: (len(e.absolute_path), list(map(str, e.absolute_path))))
+    if errors:
+        raise StoryboardError(_describe(errors[0]))
+
+
+def _path(parts) -> str:
+    out = ""
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out or "storyboard"
+
+
+def _describe(e) -> str:
+    """One readable line for a jsonschema error, without echoing the whole offending value."""
+    where = _path(e.absolute_path)
+    inst = e.instance
+    if e.validator in ("minItems", "maxItems") and isinstance(inst, list):
+        what = "joints" if where.endswith(".points") and "keyposes" in where else "items"
+        bound = e.validator_value
+        expect = f"exactly {bound}" if e.schema.get("minItems") == e.schema.get("maxItems") else (
+            f"at least {bound}" if e.validator == "minItems" else f"at most {bound}")
+        return f"{where}: expected {expect} {what}, got {len(inst)}"
+    if e.validator == "required":
+        missing = [r for r in e.validator_value if isinstance(inst, dict) and r not in inst]
+        return f"{where}: missing required field {missing[0]!r}"
+    if e.validator == "additionalProperties":
+        extra = sorted(set(inst) - set(e.schema.get("properties", {})))
+        return f"{where}: unknown field {extra[0]!r}"
+    if e.validator == "const" and where == "version":
+        return f"version: this program reads storyboard version {VERSION}, the file is version {inst!r}"
+    if e.validator == "oneOf" and where.startswith("keyposes"):
+        return f"{where}: a joint is either [u, v] or null"
+    short = json.dumps(inst)[:40] if not isinstance(inst, (dict, list)) else type(inst).__name__
+    return f"{where}: {short} is not valid here ({e.validator} {json.dumps(e.validator_value)[:60]})"
+
+
+def _check_finite(value, where: str) -> None:
+    if isinstance(value, float) and not math.isfinite(value):
+        raise StoryboardError(f"{where or 'storyboard'}: {value} is not a finite number")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _check_finite(v, f"{where}.{k}" if where else k)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _check_finite(v, f"{where}[{i}]")
