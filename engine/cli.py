@@ -22,6 +22,54 @@ def cmd_validate(args) -> int:
     return 0
 
 
+def cmd_sketchify(args) -> int:
+    from .clip import MotionClip
+    from .sketchify import sketchify
+    if not 0.0 <= args.noise <= 1.0:
+        raise UserError(f"--noise must be in [0, 1] (0.8 is the roughest training sketch), got {args.noise}")
+    if args.keyframes < 0:
+        raise UserError(f"--keyframes must be >= 0, got {args.keyframes}")
+    sb = sketchify(MotionClip.load(args.clip), args.keyframes, args.noise, args.seed)
+    sb.save(args.output)
+    print(f"{args.output}: {len(sb.keyframes())} keyframes, {len(sb.keyposes)} keyposes, "
+          f"{len(sb.trajectories)} trajectories, {len(sb.contacts)} contacts")
+    return 0
+
+
+def cmd_import_bvh(args) -> int:
+    from .io.bvh import BvhError
+    from .io.importer import ImportConfig, import_bvh
+    from .io.retarget import RetargetError, load_joint_map
+    if len(args.files) > 2:
+        raise UserError(f"import-bvh takes one or two BVH files (lead, follow), got {len(args.files)}")
+    if not args.fps > 0:
+        raise UserError(f"--fps must be positive, got {args.fps}")
+    try:
+        clip, report = import_bvh(args.files, ImportConfig(fps=args.fps), load_joint_map(args.map))
+    except (BvhError, RetargetError) as e:
+        raise UserError(str(e)) from None
+    clip.save(args.output)
+    print(f"{args.output}: {clip.num_humans} people, {clip.num_frames} frames at {clip.fps:g} fps "
+          f"(from {report.source_fps:g} fps); {report.summary()}")
+    return 0
+
+
+def cmd_synth(args) -> int:
+    from .synth import SCENARIOS, write_dataset
+    scenarios = tuple(s.strip() for s in args.scenarios.split(",") if s.strip()) if args.scenarios else SCENARIOS
+    unknown = [s for s in scenarios if s not in SCENARIOS]
+    if unknown or not scenarios:
+        raise UserError(f"unknown scenario {', '.join(unknown) or '(none)'}; choose from {', '.join(SCENARIOS)}")
+    if args.clips < 1 or args.fps <= 0 or args.seconds <= 0:
+        raise UserError("--clips, --fps and --seconds must be positive")
+    try:
+        index = write_dataset(args.output, args.clips, args.seed, scenarios, args.fps, args.seconds)
+    except ValueError as e:  # e.g. a clip too short for its scenario
+        raise UserError(str(e)) from None
+    print(f"wrote {args.clips} clips and {index}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="sketch2colab", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -29,6 +77,31 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("validate", help="check a storyboard JSON file")
     s.add_argument("file")
     s.set_defaults(func=cmd_validate)
+
+    s = sub.add_parser("sketchify", help="draw a storyboard from a motion clip NPZ")
+    s.add_argument("clip")
+    s.add_argument("-o", "--output", required=True, help="storyboard JSON to write")
+    s.add_argument("--keyframes", type=int, default=4, help="keyframes to draw (default 4)")
+    s.add_argument("--noise", type=float, default=0.0, help="hand-drawn roughness, 0 = exact (0-0.8)")
+    s.add_argument("--seed", type=int, default=0, help="camera, path choices and stroke noise")
+    s.set_defaults(func=cmd_sketchify)
+
+    s = sub.add_parser("import-bvh", help="import one or two synchronized BVH takes as a motion clip NPZ")
+    s.add_argument("files", nargs="+", metavar="BVH", help="lead BVH, then optionally the follow's")
+    s.add_argument("-o", "--output", required=True, metavar="CLIP.npz")
+    s.add_argument("--fps", type=float, default=20.0, help="output frame rate (default 20)")
+    s.add_argument("--map", default="cmu_salsa",
+                   help="joint map: built-in cmu_salsa or smpl22, or a JSON file (default cmu_salsa)")
+    s.set_defaults(func=cmd_import_bvh)
+
+    s = sub.add_parser("synth", help="write procedural two-person scenes as motion clips")
+    s.add_argument("-o", "--output", required=True, help="output folder (clips + index.json)")
+    s.add_argument("--clips", type=int, default=10)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--scenarios", default="", help="comma-separated subset (default: all)")
+    s.add_argument("--fps", type=float, default=20.0)
+    s.add_argument("--seconds", type=float, default=6.0)
+    s.set_defaults(func=cmd_synth)
     return p
 
 

@@ -89,8 +89,8 @@ def sketchify(clip: MotionClip, keyframes: int = 4, noise: float = 0.0, seed: in
     frames = choose_keyframes(clip, keyframes, config)
     joints2d = camera.project(clip.joints)                       # (N, H, 22, 2)
 
-    mask = np.zeros(NUM_JOINTS, bool)
-    mask[[JOINT_INDEX[j] for j in config.keypose_joints] if config.keypose_joints else slice(None)] = True
+    drawn_joints = config.keypose_joints or JOINT_NAMES
+    mask = np.isin(np.arange(NUM_JOINTS), [JOINT_INDEX[j] for j in drawn_joints])
     for f in frames:
         for h, agent in enumerate(agents):
             pts = _hand_keypose(joints2d[f, h], noise, noise_rng, config)

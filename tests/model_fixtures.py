@@ -1,6 +1,6 @@
 """Fake training items and batches with the dataset's field names and shapes, for model tests.
 
-An item is what engine.dataset yields: float32 tensors, N frames, 2 humans, 1 object slot with
+An item is what engine.dataset.StoryboardWindows yields: float32 tensors (contact_anchor int64), N frames, 2 humans, 1 object slot with
 2 anchors, plus every field of engine.controls.Controls. The motion is plausible enough for
 metre-scale checks: rest-pose people walking on the ground, a box between them.
 """
@@ -28,22 +28,23 @@ def fake_item(seed: int = 0, frames: int = FRAMES, obj_present: bool = True) -> 
     obj_pose = torch.cat([box, quat], -1)[:, None]                          # (N, 1, 7)
     obj_anchors = box[:, None, None] + torch.tensor([[-0.25, 0.0, 0.0], [0.25, 0.0, 0.0]])[None, None]
     phase = torch.softmax(torch.randn(n, 3, generator=g), -1)
-    contact = (torch.rand(n, 2, 2, generator=g) > 0.7).float()
+    contact_label = (torch.rand(n, 2, 2, generator=g) > 0.7).float()
     if not obj_present:
         obj_pose, obj_anchors = torch.zeros_like(obj_pose), torch.zeros_like(obj_anchors)
     item = {
         "joints": joints, "rot6d": rot6d, "obj_pose": obj_pose, "obj_anchors": obj_anchors,
-        "obj_present": torch.tensor(float(obj_present)), "phase": phase, "contact": contact,
-        "has_labels": torch.tensor(1.0),
-        # Controls (contact above doubles as the storyboard's contact control)
+        "obj_present": torch.tensor(float(obj_present)), "phase": phase, "contact_label": contact_label,
+        "has_labels": torch.tensor(1.0), "valid": torch.ones(n), "noise": torch.tensor(0.2),
+        # Controls
+        "contact": contact_label.clone(),
         "kp2d": torch.randn(n, 2, 22, 2, generator=g), "kp_mask": (torch.rand(n, 2, 22, generator=g) > 0.95).float(),
         "tr2d": torch.randn(n, 2, 22, 2, generator=g), "tr_mask": (torch.rand(n, 2, 22, generator=g) > 0.9).float(),
         "obj2d": torch.rand(n, 1, 4, generator=g), "obj_mask": (torch.rand(n, 1, generator=g) > 0.9).float(),
         "objpath2d": torch.randn(n, 1, 2, generator=g), "objpath_mask": (torch.rand(n, 1, generator=g) > 0.5).float(),
-        "contact_anchor": torch.full((n, 2, 2), -1.0),
+        "contact_anchor": torch.full((n, 2, 2), -1, dtype=torch.int64),
         "camera": torch.eye(3), "cam_target": torch.zeros(3),
     }
-    return {k: v.float() for k, v in item.items()}
+    return {k: v if k == "contact_anchor" else v.float() for k, v in item.items()}
 
 
 def fake_batch(batch: int = 2, frames: int = FRAMES, seed: int = 0) -> dict[str, torch.Tensor]:

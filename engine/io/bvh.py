@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..rotations import euler_to_matrix
+from ..rotations import euler_to_matrix, matrix_to_quat, quat_to_matrix
+from .resample import resample_linear, resample_quaternions
 
 END_SITE = "End Site"
 _CHANNEL = re.compile(r"^([XYZ])(position|rotation)$", re.IGNORECASE)
@@ -49,7 +50,9 @@ class BvhMotion:
 
     @property
     def fps(self) -> float:
-        return 1.0 / self.frame_time
+        """1 / frame_time, snapped to a whole number when the file rounds it (0.008333 s: 120)."""
+        fps = 1.0 / self.frame_time
+        return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
 
     @property
     def num_frames(self) -> int:
@@ -84,23 +87,33 @@ class BvhMotion:
             rots[:, j] = euler_to_matrix(np.stack(cols, -1), order) if order else np.eye(3)
         return trans, rots
 
-    def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
-        """Forward kinematics over all frames: positions (F, J, 3), rotations (F, J, 3, 3)."""
-        trans, rots = self.local_transforms()
-        pos = np.empty_like(trans)
-        glob = np.empty_like(rots)
-        for j, node in enumerate(self.nodes):
-            p = node.parent
-            if p < 0:
-                pos[:, j], glob[:, j] = trans[:, j], rots[:, j]
-            else:
-                pos[:, j] = pos[:, p] + np.einsum("fij,fj->fi", glob[:, p], trans[:, j])
-                glob[:, j] = glob[:, p] @ rots[:, j]
-        return pos, glob
+    def global_positions(self, fps: float | None = None) -> np.ndarray:
+        """(F, J, 3) world positions of every node, End Sites included.
 
-    def global_positions(self) -> np.ndarray:
-        """(F, J, 3) world positions of every node, End Sites included."""
-        return self.global_transforms()[0]
+        With `fps`, the motion is first resampled to that rate (M frames) in the joint-angle
+        domain, local translations linearly and local rotations by slerp, so bones stay rigid.
+        """
+        trans, rots = self.local_transforms()
+        if fps is not None:
+            trans = resample_linear(trans, self.fps, fps)
+            rots = quat_to_matrix(resample_quaternions(matrix_to_quat(rots), self.fps, fps))
+        return forward_kinematics([n.parent for n in self.nodes], trans, rots)
+
+
+def forward_kinematics(parents: list[int], trans: np.ndarray, rots: np.ndarray) -> np.ndarray:
+    """Global positions (F, J, 3) from local translations (F, J, 3) and rotations (F, J, 3, 3).
+
+    Parents come before children; a root's local transform is its global one.
+    """
+    pos = np.empty_like(trans)
+    glob = np.empty_like(rots)
+    for j, p in enumerate(parents):
+        if p < 0:
+            pos[:, j], glob[:, j] = trans[:, j], rots[:, j]
+        else:
+            pos[:, j] = pos[:, p] + np.einsum("fij,fj->fi", glob[:, p], trans[:, j])
+            glob[:, j] = glob[:, p] @ rots[:, j]
+    return pos
 
 
 # ----------------------------------------------------------------------------------------- reading
@@ -153,8 +166,11 @@ class _Tokens:
         return " ".join(words)
 
 
-def _parse_node(tok: _Tokens, nodes: list[BvhNode], parent: int, line: int, n_channels: int) -> int:
-    """Parse one ROOT/JOINT body (after its keyword); returns the running channel count."""
+def _joint_header(tok: _Tokens, nodes: list[BvhNode], parent: int, line: int, n_channels: int) -> int:
+    """Parse a ROOT/JOINT's name, '{', OFFSET and CHANNELS (after its keyword); append the node.
+
+    Returns the running channel count.
+    """
     name = tok.rest_of_line(line)
     if not name:  # name on the line after the keyword
         name, nline = tok.next()
@@ -178,30 +194,41 @@ def _parse_node(tok: _Tokens, nodes: list[BvhNode], parent: int, line: int, n_ch
             channels.append(m.group(1).upper() + m.group(2).lower())
         if len(set(channels)) != len(channels):
             raise BvhError(f"line {cline}: repeated channel in '{' '.join(channels)}'")
-    index = len(nodes)
     nodes.append(BvhNode(name, parent, offset, tuple(channels), n_channels))
-    n_channels += len(channels)
-    while True:
-        word, wline = tok.next()
+    return n_channels + len(channels)
+
+
+def _end_site(tok: _Tokens, nodes: list[BvhNode], parent: int, n_channels: int) -> None:
+    """Parse 'Site { OFFSET x y z }' (after 'End') and append it as '<parent>/End Site'."""
+    tok.expect("Site")
+    tok.expect("{")
+    tok.expect("OFFSET")
+    offset = np.array([tok.number() for _ in range(3)])
+    tok.expect("}")
+    taken = {n.name for n in nodes}
+    name, k = f"{nodes[parent].name}/{END_SITE}", 2
+    while name in taken:  # several End Sites under one joint (rare): keep names unique
+        name, k = f"{nodes[parent].name}/{END_SITE} {k}", k + 1
+    nodes.append(BvhNode(name, parent, offset, (), n_channels))
+
+
+def _parse_tree(tok: _Tokens, nodes: list[BvhNode], root_line: int, n_channels: int) -> int:
+    """Parse one ROOT's subtree with an explicit stack (any depth); returns the channel count."""
+    n_channels = _joint_header(tok, nodes, -1, root_line, n_channels)
+    open_joints = [len(nodes) - 1]
+    while open_joints:
+        word, line = tok.next()
         key = word.upper()
         if key == "}":
-            return n_channels
-        if key == "JOINT":
-            n_channels = _parse_node(tok, nodes, index, wline, n_channels)
+            open_joints.pop()
+        elif key == "JOINT":
+            n_channels = _joint_header(tok, nodes, open_joints[-1], line, n_channels)
+            open_joints.append(len(nodes) - 1)
         elif key == "END":
-            tok.expect("Site")
-            tok.expect("{")
-            tok.expect("OFFSET")
-            end_offset = np.array([tok.number() for _ in range(3)])
-            tok.expect("}")
-            taken = {n.name for n in nodes}
-            end_name = f"{name}/{END_SITE}"
-            k = 2
-            while end_name in taken:  # several End Sites under one joint (rare): keep names unique
-                end_name, k = f"{name}/{END_SITE} {k}", k + 1
-            nodes.append(BvhNode(end_name, index, end_offset, (), n_channels))
+            _end_site(tok, nodes, open_joints[-1], n_channels)
         else:
-            raise BvhError(f"line {wline}: expected JOINT, End Site or '}}', found '{word}'")
+            raise BvhError(f"line {line}: expected JOINT, End Site or '}}', found '{word}'")
+    return n_channels
 
 
 def parse_bvh(text: str, source: str = "<bvh>") -> BvhMotion:
@@ -224,7 +251,7 @@ def _parse(text: str) -> BvhMotion:
         word, line = tok.next()
         if word.upper() != "ROOT":
             raise BvhError(f"line {line}: expected 'ROOT', found '{word}'")
-        n_channels = _parse_node(tok, nodes, -1, line, n_channels)
+        n_channels = _parse_tree(tok, nodes, line, n_channels)
     if not nodes:
         raise BvhError(f"line {first + 1}: the hierarchy has no ROOT")
     if tok.motion_line is None:

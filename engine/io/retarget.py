@@ -21,12 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..skeleton import FEET, JOINT_INDEX, JOINT_NAMES, REST_OFFSETS
+from ..skeleton import FEET, JOINT_INDEX, JOINT_NAMES, rest_pose
 
 _J = JOINT_INDEX
+# Hip, knee, ankle of the left then the right leg (same order as skeleton.FEET).
 LEGS = ((_J["l_hip"], _J["l_knee"], _J["l_ankle"]), (_J["r_hip"], _J["r_knee"], _J["r_ankle"]))
-# Leg length of the template: hip->knee + knee->ankle (left side; the right mirrors it).
-TEMPLATE_LEG_LENGTH = float(sum(np.linalg.norm(REST_OFFSETS[j]) for j in LEGS[0][1:]))
+# The template's standing hip height above the ground (0.86 m; its feet stand on y = 0).
+TEMPLATE_LEG_LENGTH = float(rest_pose()[_J["l_hip"], 1])
 
 
 class RetargetError(ValueError):
@@ -89,10 +90,12 @@ class JointMap:
         return out @ self.to_world.T
 
 
+# The CMU root "hip" sits 2 cm below the hip joints; the SMPL pelvis sits 9 cm above them. The
+# midpoint of hip and abdomen (rigid in the root's frame) is 7-8 cm above them, as in SMPL.
 CMU_SALSA_MAP = JointMap.from_dict({
     "name": "cmu_salsa",
     "joints": {
-        "pelvis": "hip", "l_hip": "lThigh", "r_hip": "rThigh", "spine1": "abdomen",
+        "pelvis": {"midpoint": ["hip", "abdomen"]}, "l_hip": "lThigh", "r_hip": "rThigh", "spine1": "abdomen",
         "l_knee": "lShin", "r_knee": "rShin", "spine2": "chest", "l_ankle": "lFoot", "r_ankle": "rFoot",
         "spine3": {"midpoint": ["chest", "neck"]}, "l_foot": "lFoot/End Site", "r_foot": "rFoot/End Site",
         "neck": "neck", "l_collar": "lCollar", "r_collar": "rCollar", "head": "head",
@@ -114,13 +117,22 @@ def load_joint_map(spec: str | Path) -> JointMap:
     return JointMap.load(spec)
 
 
-def leg_length(joints: np.ndarray) -> float:
-    """Median hip->knee->ankle length of one person, averaged over both legs. joints: (F, 22, 3)."""
+def leg_length(joints: np.ndarray, floor_percentile: float = 5.0) -> float:
+    """Standing hip height of one person (F, 22, 3), in the data's units, averaged over both legs.
+
+    Thigh + shin (median lengths) + the ankle's median height above the floor while that foot is
+    the lower one. Bone lengths alone would miss how high the ankle sits (skeletons disagree on
+    where the ankle joint is: 8 cm up in the SMPL template, 3-4 cm in the CMU files).
+    """
+    floor = estimate_floor(joints, floor_percentile)
+    lowest = np.argmin(joints[:, list(FEET), 1], axis=1)
     lengths = []
-    for hip, knee, ankle in LEGS:
+    for side, (hip, knee, ankle) in enumerate(LEGS):
         thigh = np.linalg.norm(joints[:, knee] - joints[:, hip], axis=-1)
         shin = np.linalg.norm(joints[:, ankle] - joints[:, knee], axis=-1)
-        lengths.append(np.median(thigh + shin))
+        stance = lowest == side
+        ankle_height = joints[stance if stance.any() else slice(None), ankle, 1] - floor
+        lengths.append(np.median(thigh) + np.median(shin) + np.median(ankle_height))
     return float(np.mean(lengths))
 
 

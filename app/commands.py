@@ -1,0 +1,254 @@
+"""Every storyboard edit as an undoable QUndoCommand.
+
+Each command names the Storyboard lists it touches and implements `apply`; the base class
+snapshots those lists before and after the first redo, so undo and redo are exact restores
+(storyboards are small: a deep copy of a few lists costs microseconds).
+"""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+from PySide6.QtGui import QUndoCommand
+
+from engine.objects import DEFAULT_SIZES, ObjectSpec
+from engine.skeleton import MIRROR
+from engine.storyboard import Contact, Keypose, ObjectKey, SceneObject, Storyboard
+
+
+class StoryboardCommand(QUndoCommand):
+    touches: tuple[str, ...] = ()
+
+    def __init__(self, document, text: str):
+        super().__init__(text)
+        self._doc = document
+        self._before: dict | None = None
+        self._after: dict | None = None
+
+    def apply(self, sb: Storyboard) -> None:
+        raise NotImplementedError
+
+    def redo(self) -> None:
+        sb = self._doc.storyboard
+        if self._after is None:
+            self._before = self._snapshot(sb)
+            self.apply(sb)
+            self._after = self._snapshot(sb)
+        else:
+            self._restore(sb, self._after)
+        self._doc.notify_edited()
+
+    def undo(self) -> None:
+        self._restore(self._doc.storyboard, self._before)
+        self._doc.notify_edited()
+
+    def _snapshot(self, sb: Storyboard) -> dict:
+        return {name: copy.deepcopy(getattr(sb, name)) for name in self.touches}
+
+    @staticmethod
+    def _restore(sb: Storyboard, snapshot: dict) -> None:
+        for name, value in snapshot.items():
+            setattr(sb, name, copy.deepcopy(value))
+
+
+def find_keypose(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
+    return next((k for k in sb.keyposes if k.agent == agent and k.frame == frame), None)
+
+
+# ---- keyposes -------------------------------------------------------------------------------
+class SetKeypose(StoryboardCommand):
+    """Add a keypose (or replace the one at that agent and frame). points (22, 2), mask (22,)."""
+    touches = ("keyposes",)
+
+    def __init__(self, document, agent: str, frame: int, points: np.ndarray, mask: np.ndarray,
+                 text: str = "Add keypose"):
+        super().__init__(document, text)
+        self._agent, self._frame = agent, frame
+        self._points, self._mask = np.array(points, float), np.array(mask, bool)
+
+    def apply(self, sb):
+        sb.keyposes = [k for k in sb.keyposes if not (k.agent == self._agent and k.frame == self._frame)]
+        sb.keyposes.append(Keypose(self._agent, self._frame, self._points.copy(), self._mask.copy()))
+
+
+class MoveKeyposeJoint(StoryboardCommand):
+    """Place one joint of an existing keypose at uv (2,); also re-adds a removed joint."""
+    touches = ("keyposes",)
+
+    def __init__(self, document, agent: str, frame: int, joint: int, uv):
+        super().__init__(document, "Move joint")
+        self._agent, self._frame, self._joint, self._uv = agent, frame, joint, np.array(uv, float)
+
+    def apply(self, sb):
+        k = find_keypose(sb, self._agent, self._frame)
+        k.points[self._joint] = self._uv
+        k.mask[self._joint] = True
+
+
+class DeleteKeyposeJoint(StoryboardCommand):
+    """Unplace one joint; a keypose left without joints disappears."""
+    touches = ("keyposes",)
+
+    def __init__(self, document, agent: str, frame: int, joint: int):
+        super().__init__(document, "Delete joint")
+        self._agent, self._frame, self._joint = agent, frame, joint
+
+    def apply(self, sb):
+        k = find_keypose(sb, self._agent, self._frame)
+        k.mask[self._joint] = False
+        if not k.mask.any():
+            sb.keyposes.remove(k)
+
+
+class MirrorKeypose(StoryboardCommand):
+    """Flip a keypose left-right about its pelvis (left joints become right joints)."""
+    touches = ("keyposes",)
+
+    def __init__(self, document, agent: str, frame: int):
+        super().__init__(document, "Mirror keypose")
+        self._agent, self._frame = agent, frame
+
+    def apply(self, sb):
+        k = find_keypose(sb, self._agent, self._frame)
+        centre = k.points[0, 0] if k.mask[0] else k.points[k.mask, 0].mean()
+        points, mask = k.points[list(MIRROR)].copy(), k.mask[list(MIRROR)].copy()
+        points[:, 0] = 2 * centre - points[:, 0]
+        k.points, k.mask = points, mask
+
+
+class DeleteKeypose(StoryboardCommand):
+    touches = ("keyposes",)
+
+    def __init__(self, document, agent: str, frame: int):
+        super().__init__(document, "Delete keypose")
+        self._agent, self._frame = agent, frame
+
+    def apply(self, sb):
+        sb.keyposes = [k for k in sb.keyposes if not (k.agent == self._agent and k.frame == self._frame)]
+
+
+class RetimeKeyframe(StoryboardCommand):
+    """Move the keys of one timeline track (an agent's keyposes or an object's keys) from one
+    frame to another; a key already at the target frame is replaced."""
+    touches = ("keyposes", "object_keys")
+
+    def __init__(self, document, kind: str, owner: str, old: int, new: int):
+        super().__init__(document, f"Retime keyframe {old} \u2192 {new}")
+        self._kind, self._owner, self._old, self._new = kind, owner, old, new
+
+    def apply(self, sb):
+        keys = sb.keyposes if self._kind == "agent" else sb.object_keys
+        attr = "agent" if self._kind == "agent" else "object"
+        moving = [k for k in keys if getattr(k, attr) == self._owner and k.frame == self._old]
+        keys[:] = [k for k in keys if not (getattr(k, attr) == self._owner and k.frame == self._new)]
+        for k in moving:
+            k.frame = self._new
+
+
+# ---- strokes: trajectories and object paths ----------------------------------------------------
+class AddStroke(StoryboardCommand):
+    """Append a Trajectory (field "trajectories") or an ObjectPath (field "object_paths")."""
+
+    def __init__(self, document, field: str, item, text: str = "Draw trajectory"):
+        super().__init__(document, text)
+        self.touches = (field,)
+        self._item = item
+
+    def apply(self, sb):
+        getattr(sb, self.touches[0]).append(copy.deepcopy(self._item))
+
+
+class ReplaceStroke(StoryboardCommand):
+    """Replace a whole stroke, or the result of redrawing part of it."""
+
+    def __init__(self, document, field: str, index: int, item, text: str = "Redraw trajectory"):
+        super().__init__(document, text)
+        self.touches = (field,)
+        self._index, self._item = index, item
+
+    def apply(self, sb):
+        getattr(sb, self.touches[0])[self._index] = copy.deepcopy(self._item)
+
+
+class EraseStroke(StoryboardCommand):
+    def __init__(self, document, field: str, index: int):
+        super().__init__(document, "Erase trajectory")
+        self.touches = (field,)
+        self._index = index
+
+    def apply(self, sb):
+        del getattr(sb, self.touches[0])[self._index]
+
+
+# ---- objects -------------------------------------------------------------------------------------
+class SetObjectKey(StoryboardCommand):
+    """Set the silhouette outline (L, 2) of an object at a frame; creates the object if new."""
+    touches = ("objects", "object_keys")
+
+    def __init__(self, document, object_id: str, frame: int, outline: np.ndarray, kind: str = "box"):
+        super().__init__(document, "Draw object")
+        self._object, self._frame, self._outline, self._kind = object_id, frame, np.array(outline, float), kind
+
+    def apply(self, sb):
+        if self._object not in [o.id for o in sb.objects]:
+            sb.objects.append(SceneObject(self._object, ObjectSpec(self._kind, DEFAULT_SIZES[self._kind])))
+        sb.object_keys = [k for k in sb.object_keys if not (k.object == self._object and k.frame == self._frame)]
+        sb.object_keys.append(ObjectKey(self._object, self._frame, self._outline.copy()))
+
+
+class MoveObjectKey(StoryboardCommand):
+    touches = ("object_keys",)
+
+    def __init__(self, document, index: int, delta):
+        super().__init__(document, "Move object")
+        self._index, self._delta = index, np.array(delta, float)
+
+    def apply(self, sb):
+        sb.object_keys[self._index].outline = sb.object_keys[self._index].outline + self._delta
+
+
+class DeleteObjectKey(StoryboardCommand):
+    touches = ("object_keys",)
+
+    def __init__(self, document, index: int):
+        super().__init__(document, "Delete object key")
+        self._index = index
+
+    def apply(self, sb):
+        del sb.object_keys[self._index]
+
+
+class SetObjectSpec(StoryboardCommand):
+    """Change an object's type and size (metres, w x h x d); its anchors follow the new shape."""
+    touches = ("objects",)
+
+    def __init__(self, document, object_id: str, kind: str, size: tuple[float, float, float]):
+        super().__init__(document, "Change object")
+        self._object, self._kind, self._size = object_id, kind, tuple(size)
+
+    def apply(self, sb):
+        sb.objects[sb.object_index(self._object)].spec = ObjectSpec(self._kind, self._size)
+
+
+# ---- contacts ------------------------------------------------------------------------------------
+class AddContact(StoryboardCommand):
+    touches = ("contacts",)
+
+    def __init__(self, document, contact: Contact):
+        super().__init__(document, "Add contact")
+        self._contact = contact
+
+    def apply(self, sb):
+        sb.contacts.append(copy.deepcopy(self._contact))
+
+
+class DeleteContact(StoryboardCommand):
+    touches = ("contacts",)
+
+    def __init__(self, document, index: int):
+        super().__init__(document, "Delete contact")
+        self._index = index
+
+    def apply(self, sb):
+        del sb.contacts[self._index]
+

@@ -1,0 +1,163 @@
+"""The open document: a pure model the widgets observe (napari style), no widgets here.
+
+It holds the Storyboard, its file path, the dirty flag, the selection, the active tool, the
+playhead frame, the timeline's frame span, the generation settings and the last generation's
+clips and phase occupancy. Storyboard edits go through `commands.py` on `undo_stack`; every
+other change is a setter that emits its signal only when the value really changes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import QObject, Signal
+from PySide6.QtGui import QUndoStack
+
+from engine.camera import StoryboardCamera
+from engine.clip import MotionClip
+from engine.storyboard import AGENT_COLORS, Agent, Storyboard
+
+from .generation import GenerationSettings
+
+TOOLS = ("select", "keypose", "trajectory", "object", "contact", "erase")
+OBJECT_PATH = "object path"  # pseudo joint: the trajectory tool then draws the selected object's path
+
+
+def new_storyboard() -> Storyboard:
+    """The new-document default: agents A and B, 120 frames at 20 fps, the default camera."""
+    return Storyboard(fps=20.0, length=120, camera=StoryboardCamera(),
+                      agents=[Agent("A", "A", AGENT_COLORS[0]), Agent("B", "B", AGENT_COLORS[1])])
+
+
+@dataclass(frozen=True)
+class Selection:
+    agent: str | None = None
+    joint: str = "pelvis"        # a JOINT_NAMES entry or OBJECT_PATH
+    object: str | None = None
+
+
+class Document(QObject):
+    storyboardChanged = Signal()   # content edited, undone, redone or replaced
+    selectionChanged = Signal()
+    toolChanged = Signal(str)
+    frameChanged = Signal(int)
+    spanChanged = Signal()         # the timeline's frame span (used by trajectories, contacts)
+    settingsChanged = Signal()
+    resultChanged = Signal()       # clips, chosen variation or phase occupancy
+    referenceChanged = Signal()    # imported reference motion
+    pathChanged = Signal()
+    dirtyChanged = Signal(bool)
+
+    def __init__(self, storyboard: Storyboard | None = None, path: Path | None = None):
+        super().__init__()
+        self.undo_stack = QUndoStack(self)
+        self.undo_stack.cleanChanged.connect(self._emit_dirty)
+        self.storyboard = storyboard or new_storyboard()
+        self.path = path
+        self._unsaved_without_edits = False  # e.g. a recovered file: dirty before any edit
+        self.selection = Selection(agent=self.storyboard.agents[0].id)
+        self.tool = "keypose"
+        self.frame = 0
+        self.span: tuple[int, int] | None = None
+        self.settings = GenerationSettings()
+        self.clips: list[MotionClip] = []
+        self.variation = 0
+        self.phase: np.ndarray | None = None   # (N, 3) occupancy of the last finished generation
+        self.reference: MotionClip | None = None
+
+    # ---- whole-document changes ------------------------------------------------------------
+    def replace_storyboard(self, storyboard: Storyboard, path: Path | None, dirty: bool = False) -> None:
+        """New / open / recover: a fresh history, selection and result for `storyboard`."""
+        self.undo_stack.clear()
+        self.storyboard = storyboard
+        self.path = path
+        self.selection = Selection(agent=storyboard.agents[0].id,
+                                   object=storyboard.objects[0].id if storyboard.objects else None)
+        self.frame = 0
+        self.span = None
+        self.clips, self.variation, self.phase = [], 0, None
+        self._unsaved_without_edits = dirty
+        for signal in (self.storyboardChanged, self.selectionChanged, self.spanChanged,
+                       self.resultChanged, self.pathChanged):
+            signal.emit()
+        self.frameChanged.emit(0)
+        self._emit_dirty()
+
+    def mark_saved(self, path: Path) -> None:
+        self.path = path
+        self._unsaved_without_edits = False
+        self.undo_stack.setClean()
+        self.pathChanged.emit()
+        self._emit_dirty()
+
+    @property
+    def dirty(self) -> bool:
+        return self._unsaved_without_edits or not self.undo_stack.isClean()
+
+    def _emit_dirty(self, *_):
+        self.dirtyChanged.emit(self.dirty)
+
+    def notify_edited(self) -> None:
+        """Called by every command after it changed the storyboard."""
+        self.frame = min(self.frame, self.storyboard.length - 1)
+        self.storyboardChanged.emit()
+
+    # ---- view state --------------------------------------------------------------------------
+    def select(self, **changes) -> None:
+        """Change selection fields, e.g. select(agent="B", joint="l_wrist")."""
+        new = replace(self.selection, **changes)
+        if new != self.selection:
+            self.selection = new
+            self.selectionChanged.emit()
+
+    def set_tool(self, tool: str) -> None:
+        if tool not in TOOLS:
+            raise ValueError(f"unknown tool {tool!r}")
+        if tool != self.tool:
+            self.tool = tool
+            self.toolChanged.emit(tool)
+
+    def set_frame(self, frame: int) -> None:
+        frame = int(np.clip(frame, 0, self.storyboard.length - 1))
+        if frame != self.frame:
+            self.frame = frame
+            self.frameChanged.emit(frame)
+
+    def set_span(self, span: tuple[int, int] | None) -> None:
+        if span is not None:
+            lo, hi = sorted(int(np.clip(f, 0, self.storyboard.length - 1)) for f in span)
+            span = (lo, hi) if hi > lo else None
+        if span != self.span:
+            self.span = span
+            self.spanChanged.emit()
+
+    def span_or(self, default: tuple[int, int]) -> tuple[int, int]:
+        return self.span if self.span is not None else default
+
+    def set_settings(self, settings: GenerationSettings) -> None:
+        if settings != self.settings:
+            self.settings = settings
+            self.settingsChanged.emit()
+
+    # ---- generation results ------------------------------------------------------------------
+    def set_result(self, clips: list[MotionClip], phase: np.ndarray | None) -> None:
+        self.clips, self.variation = list(clips), 0
+        self.phase = phase if phase is not None else (clips[0].phase if clips else None)
+        self.resultChanged.emit()
+
+    def choose_variation(self, index: int) -> None:
+        if 0 <= index < len(self.clips) and index != self.variation:
+            self.variation = index
+            if self.clips[index].phase is not None:
+                self.phase = self.clips[index].phase
+            self.resultChanged.emit()
+
+    @property
+    def clip(self) -> MotionClip | None:
+        """The generated clip currently shown (the chosen variation), if any."""
+        return self.clips[self.variation] if self.clips else None
+
+    def set_reference(self, clip: MotionClip | None) -> None:
+        self.reference = clip
+        self.referenceChanged.emit()

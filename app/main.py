@@ -1,0 +1,46 @@
+"""`sketch2colab-studio`: start the desktop app (optionally opening a storyboard file)."""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+NO_DISPLAY = ("sketch2colab-studio needs a display, and none was found (DISPLAY and WAYLAND_DISPLAY "
+              "are unset). On a machine without a screen, run `sketch2colab demo` instead, or set "
+              "QT_QPA_PLATFORM=offscreen.")
+
+
+def has_display() -> bool:
+    if not sys.platform.startswith("linux"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+                or os.environ.get("QT_QPA_PLATFORM", "").startswith(("offscreen", "minimal", "vnc")))
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if not has_display():
+        print(NO_DISPLAY, file=sys.stderr)
+        return 2
+    from PySide6.QtCore import QSettings, QStandardPaths
+    from PySide6.QtWidgets import QApplication
+
+    import torch  # noqa: F401  loaded now, not on the first Generate, where its import would stall the GUI
+
+    from .mainwindow import APP_NAME, MainWindow
+
+    app = QApplication([sys.argv[0], *argv])
+    app.setOrganizationName("Sketch2Colab")
+    app.setApplicationName(APP_NAME)
+    data_dir = Path(QStandardPaths.writableLocation(QStandardPaths.AppDataLocation))
+    window = MainWindow(data_dir=data_dir, settings=QSettings())
+    window.show()
+    recovered = window.offer_recovery()
+    files = [a for a in argv if not a.startswith("-")]
+    if files and not recovered:
+        window.open_file(files[0])
+    return app.exec()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,537 @@
+"""The main window: canvas in the middle, timeline + phase strip, 3D view and properties in
+docks; menus, toolbar, status bar and shortcuts; files, autosave, export and generation.
+
+Every failure a person can cause (a bad file, a full disk, a sampler error) becomes a dialog
+with a one-line message, and the document stays as it was.
+"""
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from PySide6.QtCore import QSettings, Qt
+from PySide6.QtGui import QAction, QActionGroup, QKeySequence
+from PySide6.QtWidgets import (QDockWidget, QFileDialog, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
+                               QProgressBar, QSizePolicy, QToolButton, QVBoxLayout, QWidget)
+
+from engine.sampling.events import GenerationResult, StepEvent
+from engine.storyboard import Storyboard, StoryboardError
+
+from . import commands as cmd
+from .autosave import Autosaver, find_recovery
+from .canvas import SketchCanvas
+from .document import TOOLS, Document, new_storyboard
+from .generation import GenerationSettings, StepStream, start_generation
+from .phase_strip import PhaseStrip
+from .playback import Playback
+from .poses import previous_keypose
+from .properties import PropertiesPanel
+from .timeline import Timeline, delete_keyframe
+from .worker import GenerationRunner
+
+try:
+    from .viewport import Viewport
+except ModuleNotFoundError as missing:  # the moderngl view is written separately
+    if missing.name != "app.viewport":
+        raise
+    from .viewport_placeholder import ViewportPlaceholder as Viewport
+
+APP_NAME = "Sketch2Colab Studio"
+FILE_FILTER = "Storyboards (*.json);;All files (*)"
+MAX_RECENT = 8
+TOOL_KEYS = {"select": "V", "keypose": "K", "trajectory": "T", "object": "O", "contact": "C", "erase": "E"}
+TOOL_TIPS = {"select": "Select and move joints and objects",
+             "keypose": "Click to place a stick figure at the playhead; drag joints to pose it",
+             "trajectory": "Draw a path for the selected joint; start on an existing path to redraw part of it",
+             "object": "Drag a rectangle (or draw a lasso) for the object at the playhead",
+             "contact": "Click a hand, then an object anchor or another hand",
+             "erase": "Click a joint, path, contact or object to remove it"}
+NOT_YET = "Needs an engine function that is not in this build yet"
+
+
+class MainWindow(QMainWindow):
+    def __init__(self, data_dir: Path, settings: QSettings | None = None,
+                 generate: Callable[[Storyboard, GenerationSettings], StepStream] = start_generation,
+                 autosave_ms: int = 30_000):
+        super().__init__()
+        self.doc = Document()
+        self.settings = settings or QSettings()
+        self._generate = generate
+        self._generation_started = 0.0
+        self.playback = Playback(self.doc, self)
+        self.runner = GenerationRunner(self)
+        self.autosaver = Autosaver(self.doc, data_dir, autosave_ms, self)
+
+        self.canvas = SketchCanvas(self.doc)
+        self.setCentralWidget(self.canvas)
+        self.timeline = Timeline(self.doc)
+        self.phase_strip = PhaseStrip(self.doc)
+        self.viewport = Viewport()
+        self.properties = PropertiesPanel(self.doc)
+        self._build_actions()
+        self._build_docks()
+        self._build_menus()
+        self._build_toolbar()
+        self._build_status()
+        self._connect()
+        self.resize(1360, 860)
+        self._update_title()
+
+    # ---- construction ------------------------------------------------------------------------
+    def _action(self, text: str, slot, shortcut=None, tip: str = "", enabled: bool = True) -> QAction:
+        action = QAction(text, self)
+        if shortcut is not None:
+            action.setShortcuts(shortcut if isinstance(shortcut, list) else [QKeySequence(shortcut)])
+        if tip:
+            action.setToolTip(tip)
+            action.setStatusTip(tip)
+        action.setEnabled(enabled)
+        if slot is not None:
+            action.triggered.connect(slot)
+        self.addAction(action)   # shortcuts work even when the action is in no visible menu
+        return action
+
+    def _build_actions(self) -> None:
+        a = self._action
+        self.act_new = a("&New", self.new_document, QKeySequence.New)
+        self.act_open = a("&Open\u2026", lambda: self.open_file(), QKeySequence.Open)
+        self.act_save = a("&Save", self.save, QKeySequence.Save)
+        self.act_save_as = a("Save &As\u2026", self.save_as, QKeySequence("Ctrl+Shift+S"))
+        self.act_export_npz = a("Export Motion (NPZ)\u2026", self.export_npz, tip="Save the generated motion")
+        self.act_export_bvh = a("Export Motion (BVH)\u2026", self.export_bvh, tip="One BVH file per person")
+        self.act_export_gltf = a("Export Scene (glTF)\u2026", None, tip=NOT_YET, enabled=False)
+        self.act_export_png = a("Export 3D View (PNG)\u2026", self.export_png)
+        self.act_import_bvh = a("Import Reference Motion (BVH)\u2026", self.import_bvh,
+                                tip="Show real motion under the sketch (one BVH file per person)")
+        self.act_trace = a("Trace Storyboard from Motion", self.trace_storyboard,
+                           tip="Start a new storyboard drawn from the reference (or generated) motion")
+        self.act_quit = a("&Quit", self.close, QKeySequence.Quit)
+
+        stack = self.doc.undo_stack
+        self.act_undo = stack.createUndoAction(self, "&Undo")
+        self.act_undo.setShortcuts([QKeySequence.Undo])
+        self.act_redo = stack.createRedoAction(self, "&Redo")
+        self.act_redo.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
+        self.addActions([self.act_undo, self.act_redo])
+        self.act_copy_pose = a("Copy Previous Keypose", self.copy_previous_keypose, QKeySequence("Ctrl+D"),
+                               tip="Pose the selected agent at the playhead like its previous keyframe")
+        self.act_mirror = a("Mirror Keypose", self.mirror_keypose, QKeySequence("M"),
+                            tip="Flip the selected agent's keypose at the playhead left-right")
+        self.act_delete_key = a("Delete Keypose", self.delete_keypose, QKeySequence.Delete,
+                                tip="Delete the selected agent's keypose at the playhead")
+
+        self.tool_group = QActionGroup(self)
+        self.tool_actions: dict[str, QAction] = {}
+        for tool in TOOLS:
+            act = a(tool.capitalize(), lambda _=False, t=tool: self.doc.set_tool(t), QKeySequence(TOOL_KEYS[tool]),
+                    tip=f"{TOOL_TIPS[tool]}  ({TOOL_KEYS[tool]})")
+            act.setCheckable(True)
+            self.tool_group.addAction(act)
+            self.tool_actions[tool] = act
+        self.tool_actions[self.doc.tool].setChecked(True)
+
+        self.act_play = a("Play / Pause", self.playback.toggle, QKeySequence(Qt.Key_Space))
+        self.act_next = a("Next Frame", lambda: self.playback.step(1), QKeySequence(Qt.Key_Right))
+        self.act_prev = a("Previous Frame", lambda: self.playback.step(-1), QKeySequence(Qt.Key_Left))
+        self.act_generate = a("Generate", self.generate, [QKeySequence("Ctrl+Return"), QKeySequence("Ctrl+Enter")],
+                              tip="Generate motion from the storyboard (Ctrl+Enter)")
+        self.act_cancel = a("Cancel", self.runner.cancel, QKeySequence(Qt.Key_Escape),
+                            tip="Stop the running generation (Esc)", enabled=False)
+        self.act_onion = a("Onion Skin", lambda on: self._set_onion(on), tip="Show the generated motion under the sketch")
+        self.act_onion.setCheckable(True)
+        self.act_onion.setChecked(True)
+
+    def _build_docks(self) -> None:
+        self.setDockOptions(QMainWindow.AnimatedDocks | QMainWindow.AllowNestedDocks)
+        timeline_panel = QWidget()
+        column = QVBoxLayout(timeline_panel)
+        column.setContentsMargins(0, 0, 0, 0)
+        column.setSpacing(0)
+        header = QHBoxLayout()
+        header.setContentsMargins(6, 2, 6, 2)
+        self.play_button = QToolButton()
+        self.play_button.setDefaultAction(self.act_play)
+        self.play_button.setText("\u25b6")
+        self.frame_label = QLabel()
+        header.addWidget(self.play_button)
+        header.addWidget(self.frame_label)
+        header.addStretch(1)
+        header.addWidget(QLabel("shift-drag: frame span  \u00b7  double-click: add keypose  \u00b7  right-click: delete"))
+        column.addLayout(header)
+        column.addWidget(self.timeline)
+        column.addWidget(self.phase_strip, 1)
+        self.timeline_dock = self._dock("Timeline", timeline_panel, Qt.BottomDockWidgetArea)
+        self.viewport_dock = self._dock("3D View", self.viewport, Qt.RightDockWidgetArea)
+        self.properties_dock = self._dock("Properties", self.properties, Qt.LeftDockWidgetArea)
+        self.resizeDocks([self.viewport_dock], [440], Qt.Horizontal)
+        self.resizeDocks([self.properties_dock], [250], Qt.Horizontal)
+        self.resizeDocks([self.timeline_dock], [210], Qt.Vertical)
+
+    def _dock(self, title: str, widget: QWidget, area) -> QDockWidget:
+        dock = QDockWidget(title, self)
+        dock.setObjectName(title)
+        dock.setWidget(widget)
+        dock.setFeatures(QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable
+                         | QDockWidget.DockWidgetClosable)
+        self.addDockWidget(area, dock)
+        return dock
+
+    def _build_menus(self) -> None:
+        bar = self.menuBar()
+        files = bar.addMenu("&File")
+        files.setToolTipsVisible(True)
+        files.addActions([self.act_new, self.act_open])
+        self.recent_menu = files.addMenu("Open &Recent")
+        files.addSeparator()
+        files.addActions([self.act_save, self.act_save_as])
+        files.addSeparator()
+        files.addActions([self.act_export_npz, self.act_export_bvh, self.act_export_gltf, self.act_export_png])
+        files.addSeparator()
+        files.addActions([self.act_import_bvh, self.act_trace])
+        files.addSeparator()
+        files.addAction(self.act_quit)
+        edit = bar.addMenu("&Edit")
+        edit.addActions([self.act_undo, self.act_redo])
+        edit.addSeparator()
+        edit.addActions([self.act_copy_pose, self.act_mirror, self.act_delete_key])
+        tools = bar.addMenu("&Tools")
+        tools.addActions(list(self.tool_actions.values()))
+        play = bar.addMenu("&Playback")
+        play.addActions([self.act_play, self.act_prev, self.act_next])
+        gen = bar.addMenu("&Generate")
+        gen.addActions([self.act_generate, self.act_cancel])
+        view = bar.addMenu("&View")
+        view.addAction(self.act_onion)
+        view.addSeparator()
+        for dock in (self.timeline_dock, self.viewport_dock, self.properties_dock):
+            view.addAction(dock.toggleViewAction())
+        self._rebuild_recent()
+
+    def _build_toolbar(self) -> None:
+        bar = self.addToolBar("Tools")
+        bar.setObjectName("Tools")
+        bar.setMovable(False)
+        bar.setToolButtonStyle(Qt.ToolButtonTextOnly)
+        bar.addActions(list(self.tool_actions.values()))
+        bar.addSeparator()
+        bar.addActions([self.act_copy_pose, self.act_mirror])
+        bar.addSeparator()
+        bar.addActions([self.act_undo, self.act_redo])
+        spacer = QWidget()
+        spacer.setSizePolicy(QSizePolicy.Expanding, QSizePolicy.Preferred)
+        bar.addWidget(spacer)
+        bar.addAction(self.act_generate)
+        bar.addAction(self.act_cancel)
+        self.setStyleSheet("QToolBar { spacing: 2px; padding: 2px; }"
+                           "QToolBar QToolButton { padding: 4px 9px; }"
+                           "QToolBar QToolButton:checked { background: #2e86ab; color: white; border-radius: 3px; }")
+
+    def _build_status(self) -> None:
+        self.progress = QProgressBar()
+        self.progress.setMaximumWidth(220)
+        self.progress.setTextVisible(True)
+        self.progress.setFormat("step %v / %m")
+        self.progress.hide()
+        self.statusBar().addPermanentWidget(self.progress)
+        self.statusBar().showMessage("Ready. Pick a tool and sketch; Ctrl+Enter generates.")
+
+    def _connect(self) -> None:
+        doc = self.doc
+        doc.dirtyChanged.connect(lambda _: self._update_title())
+        doc.pathChanged.connect(self._update_title)
+        doc.toolChanged.connect(lambda tool: self.tool_actions[tool].setChecked(True))
+        doc.frameChanged.connect(self._on_frame)
+        doc.storyboardChanged.connect(self._on_storyboard)
+        doc.resultChanged.connect(lambda: self.viewport.set_clip(doc.clip))
+        self.viewport.frameChanged.connect(doc.set_frame)
+        self.canvas.message.connect(lambda text: self.statusBar().showMessage(text, 5000))
+        self.properties.objectShapeChanged.connect(lambda shape: setattr(self.canvas, "object_shape", shape))
+        self.playback.playingChanged.connect(lambda on: self.play_button.setText("\u23f8" if on else "\u25b6"))
+        self.runner.step.connect(self._on_step)
+        self.runner.finished.connect(self._on_generated)
+        self.runner.failed.connect(self._on_generation_failed)
+        self.runner.cancelled.connect(self._on_generation_cancelled)
+        self.runner.runningChanged.connect(self._on_running)
+        self._on_storyboard()
+        self._on_frame(doc.frame)
+
+    # ---- document observers ------------------------------------------------------------------
+    def _update_title(self) -> None:
+        name = self.doc.path.name if self.doc.path else "Untitled"
+        self.setWindowTitle(f"{name}[*] \u2014 {APP_NAME}")
+        self.setWindowModified(self.doc.dirty)
+
+    def _on_frame(self, frame: int) -> None:
+        sb = self.doc.storyboard
+        self.frame_label.setText(f"frame <b>{frame}</b> / {sb.length - 1}   \u00b7   {sb.length} frames @ {sb.fps:g} fps")
+        self.viewport.set_frame(frame)
+
+    def _on_storyboard(self) -> None:
+        self.viewport.set_storyboard(self.doc.storyboard)
+        self._on_frame(self.doc.frame)
+
+    def _set_onion(self, on: bool) -> None:
+        self.canvas.show_onion = on
+        self.canvas.update()
+
+    # ---- files ----------------------------------------------------------------------------------
+    def error(self, message: str) -> None:
+        QMessageBox.critical(self, APP_NAME, message)
+
+    def maybe_save(self) -> bool:
+        """Ask about unsaved changes; False when the person cancels."""
+        if not self.doc.dirty:
+            return True
+        answer = QMessageBox.question(self, APP_NAME, "Save changes to the storyboard?",
+                                      QMessageBox.Save | QMessageBox.Discard | QMessageBox.Cancel,
+                                      QMessageBox.Save)
+        if answer == QMessageBox.Save:
+            return self.save()
+        return answer == QMessageBox.Discard
+
+    def new_document(self) -> None:
+        if self.maybe_save():
+            self.doc.replace_storyboard(new_storyboard(), None)
+
+    def open_file(self, path: str | Path | None = None) -> bool:
+        if not self.maybe_save():
+            return False
+        if path is None:
+            path, _ = QFileDialog.getOpenFileName(self, "Open Storyboard", self._last_dir(), FILE_FILTER)
+            if not path:
+                return False
+        try:
+            storyboard = Storyboard.load(path)
+        except StoryboardError as e:
+            self.error(f"Cannot open {Path(path).name}: {e}")
+            return False
+        self.doc.replace_storyboard(storyboard, Path(path))
+        self._remember(Path(path))
+        self.statusBar().showMessage(f"Opened {path}", 5000)
+        return True
+
+    def save(self) -> bool:
+        return self.save_to(self.doc.path) if self.doc.path else self.save_as()
+
+    def save_as(self) -> bool:
+        path, _ = QFileDialog.getSaveFileName(self, "Save Storyboard", self._last_dir(), FILE_FILTER)
+        return self.save_to(Path(path)) if path else False
+
+    def save_to(self, path: Path) -> bool:
+        path = Path(path)
+        try:
+            self.doc.storyboard.validate()
+            self.doc.storyboard.save(path)
+        except (StoryboardError, OSError) as e:
+            self.error(f"Cannot save {path.name}: {e}")
+            return False
+        self.doc.mark_saved(path)
+        self._remember(path)
+        self.statusBar().showMessage(f"Saved {path}", 5000)
+        return True
+
+    def _last_dir(self) -> str:
+        recent = self.recent_files()
+        return str(Path(recent[0]).parent) if recent else str(Path.home())
+
+    def recent_files(self) -> list[str]:
+        value = self.settings.value("recentFiles", [])
+        return [value] if isinstance(value, str) else list(value or [])
+
+    def _remember(self, path: Path) -> None:
+        files = [str(path.resolve())] + [f for f in self.recent_files() if f != str(path.resolve())]
+        self.settings.setValue("recentFiles", files[:MAX_RECENT])
+        self._rebuild_recent()
+
+    def _rebuild_recent(self) -> None:
+        self.recent_menu.clear()
+        for f in self.recent_files():
+            self.recent_menu.addAction(Path(f).name, lambda f=f: self.open_file(f)).setToolTip(f)
+        self.recent_menu.setEnabled(bool(self.recent_files()))
+
+    def export_npz(self) -> None:
+        clip = self.doc.clip
+        if clip is None:
+            self.error("There is no generated motion to export yet: generate first (Ctrl+Enter).")
+            return
+        path, _ = QFileDialog.getSaveFileName(self, "Export Motion", self._last_dir(), "Motion clips (*.npz)")
+        if path:
+            try:
+                clip.save(path)
+            except OSError as e:
+                self.error(f"Cannot export {Path(path).name}: {e}")
+
+    def export_bvh(self) -> None:
+        from engine.io import write_bvh
+        clip = self.doc.clip
+        if clip is None:
+            self.error("There is no generated motion to export yet: generate first (Ctrl+Enter).")
+            return
+        path, _ = QFileDialog.getSaveFileName(self, "Export Motion as BVH", self._last_dir(), "BVH (*.bvh)")
+        if not path:
+            return
+        agents = self.doc.storyboard.agents
+        stem = Path(path).with_suffix("")
+        try:
+            for h in range(clip.num_humans):
+                name = agents[h].id if h < len(agents) else str(h)
+                write_bvh(clip, h, f"{stem}_{name}.bvh")
+        except (OSError, ValueError) as e:
+            self.error(f"Cannot export BVH: {e}")
+            return
+        self.statusBar().showMessage(f"Exported {clip.num_humans} BVH files next to {stem}", 5000)
+
+    def import_bvh(self) -> None:
+        from engine.io import import_bvh
+        paths, _ = QFileDialog.getOpenFileNames(self, "Import Reference Motion (one BVH per person)",
+                                                self._last_dir(), "BVH (*.bvh)")
+        if not paths:
+            return
+        try:
+            clip, _report = import_bvh(paths)
+        except (OSError, ValueError) as e:
+            self.error(f"Cannot import {Path(paths[0]).name}: {str(e).splitlines()[0]}")
+            return
+        self.doc.set_reference(clip)
+        self.statusBar().showMessage(f"Reference motion: {clip.num_frames} frames, {clip.num_humans} people", 5000)
+
+    def trace_storyboard(self) -> None:
+        """A new storyboard traced from the reference motion (else the generated one)."""
+        from engine.sketchify import sketchify
+        clip = self.doc.reference or self.doc.clip
+        if clip is None:
+            self.error("There is no motion to trace: import a BVH reference or generate first.")
+            return
+        if not self.maybe_save():
+            return
+        try:
+            storyboard = sketchify(clip, keyframes=4, camera=self.doc.storyboard.camera)
+        except ValueError as e:
+            self.error(f"Cannot trace the motion: {e}")
+            return
+        reference = self.doc.reference
+        self.doc.replace_storyboard(storyboard, None, dirty=True)
+        self.doc.set_reference(reference)
+
+    def export_png(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Export 3D View", self._last_dir(), "PNG images (*.png)")
+        if path:
+            try:
+                self.viewport.grab_png(path)
+            except OSError as e:
+                self.error(f"Cannot write {Path(path).name}: {e}")
+
+    # ---- crash recovery ------------------------------------------------------------------------
+    def offer_recovery(self) -> bool:
+        """At start: if the last session left unsaved work behind, offer to reopen it."""
+        found = find_recovery(self.autosaver.directory)
+        if found is None:
+            return False
+        name = found.source.name if found.source else "an untitled storyboard"
+        answer = QMessageBox.question(self, APP_NAME,
+                                      f"The last session ended with unsaved changes to {name}. Recover them?",
+                                      QMessageBox.Yes | QMessageBox.No, QMessageBox.Yes)
+        if answer != QMessageBox.Yes:
+            self.autosaver.clear()
+            return False
+        try:
+            storyboard = found.load()
+        except StoryboardError as e:
+            self.error(f"The recovery file cannot be read: {e}")
+            self.autosaver.clear()
+            return False
+        self.doc.replace_storyboard(storyboard, found.source, dirty=True)
+        self.statusBar().showMessage("Recovered unsaved work; save it to keep it.", 8000)
+        return True
+
+    # ---- editing actions -----------------------------------------------------------------------
+    def copy_previous_keypose(self) -> None:
+        doc = self.doc
+        agent = doc.selection.agent
+        previous = previous_keypose(doc.storyboard, agent, doc.frame)
+        if previous is None:
+            self.statusBar().showMessage(f"Agent {agent} has no keypose before frame {doc.frame}.", 5000)
+            return
+        doc.undo_stack.push(cmd.SetKeypose(doc, agent, doc.frame, previous.points, previous.mask,
+                                           f"Copy keypose from frame {previous.frame}"))
+
+    def mirror_keypose(self) -> None:
+        doc = self.doc
+        if cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame) is None:
+            self.statusBar().showMessage("No keypose at the playhead to mirror.", 5000)
+            return
+        doc.undo_stack.push(cmd.MirrorKeypose(doc, doc.selection.agent, doc.frame))
+
+    def delete_keypose(self) -> None:
+        doc = self.doc
+        if cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame) is not None:
+            delete_keyframe(doc, "agent", doc.selection.agent, doc.frame)
+
+    # ---- generation ------------------------------------------------------------------------------
+    def generate(self) -> None:
+        if self.runner.running:
+            return
+        storyboard = copy.deepcopy(self.doc.storyboard)  # edits during the run do not leak into it
+        try:
+            storyboard.validate()
+        except StoryboardError as e:
+            self.error(f"The storyboard cannot be generated from: {e}")
+            return
+        settings, generate = self.doc.settings, self._generate
+        self._generation_started = time.perf_counter()
+        self.progress.setRange(0, settings.steps)
+        self.progress.setValue(0)
+        self.runner.start(lambda: generate(storyboard, settings))
+        self.statusBar().showMessage("Generating\u2026  (Esc cancels)")
+
+    def _on_running(self, running: bool) -> None:
+        self.act_generate.setEnabled(not running)
+        self.act_cancel.setEnabled(running)
+        self.progress.setVisible(running)
+
+    def _on_step(self, event: StepEvent) -> None:
+        """Cheap on purpose: hand the arrays over and let the widgets repaint when Qt paints."""
+        self.viewport.set_preview(event.preview)
+        self.phase_strip.set_phase(event.phase)
+        self.progress.setRange(0, event.num_steps)
+        self.progress.setValue(event.step + 1)
+        energies = "  ".join(f"{k} {v:.3g}" for k, v in list(event.energies.items())[:4])
+        self.statusBar().showMessage(f"Generating: step {event.step + 1} / {event.num_steps}  t={event.t:.2f}  {energies}")
+
+    def _on_generated(self, result: GenerationResult) -> None:
+        clips = list(result.clips)
+        self.viewport.set_preview(None)
+        self.doc.set_result(clips, clips[0].phase if clips else None)
+        self.statusBar().showMessage(
+            f"Generated {len(clips)} variation{'s' * (len(clips) != 1)} in {result.wall_time_s:.1f} s "
+            f"(first step after {result.first_step_s:.2f} s).", 10000)
+
+    def _on_generation_failed(self, message: str) -> None:
+        self._restore_after_generation()
+        self.error(f"Generation failed: {message}")
+
+    def _on_generation_cancelled(self) -> None:
+        self._restore_after_generation()
+        self.statusBar().showMessage("Generation cancelled.", 5000)
+
+    def _restore_after_generation(self) -> None:
+        self.viewport.set_preview(None)
+        self.phase_strip.show_document_phase()
+
+    # ---- closing ---------------------------------------------------------------------------------
+    def closeEvent(self, event) -> None:
+        if not self.maybe_save():
+            event.ignore()
+            return
+        self.shutdown()
+        event.accept()
+
+    def shutdown(self) -> None:
+        """Stop playback, the generation thread and autosave; the recovery file goes too, since
+        the person has either saved or chosen to discard."""
+        self.playback.pause()
+        self.runner.shutdown()
+        self.autosaver.stop()
+        self.autosaver.clear()

@@ -1,0 +1,104 @@
+"""The phase strip: the CTMC occupancy of approach / contact / carry over the motion's frames
+as stacked areas (pyqtgraph), the storyboard's contact spans as bars below it, and the
+playhead. Scrub it like the timeline. `set_phase` is cheap (three setData calls) so it can run
+at every streamed sampler step.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+
+from engine.clip import PHASES
+
+from .document import Document
+from .timeline import LABEL_W, MARGIN
+
+PHASE_COLORS = ("#8ecae6", "#ffb703", "#8f5fbf")   # approach, contact, carry
+PLAYHEAD = "#d1495b"
+LANE = 0.16                                          # height of one contact-span lane (plot units)
+
+
+class PhaseStrip(pg.PlotWidget):
+    def __init__(self, document: Document, parent=None):
+        super().__init__(parent, background="#fbfaf7")
+        self._doc = document
+        item = self.getPlotItem()
+        item.setMenuEnabled(False)
+        item.hideButtons()
+        item.setMouseEnabled(x=False, y=False)
+        item.hideAxis("bottom")
+        axis = item.getAxis("left")
+        axis.setWidth(LABEL_W)
+        axis.setTicks([[(0.5, "phase")], []])
+        axis.setPen(pg.mkPen("#b0aa9c"))
+        axis.setTextPen(pg.mkPen("#3a3a3a"))
+        item.layout.setContentsMargins(0, 2, MARGIN, 2)
+        self.setMinimumHeight(70)
+        self._curves = [pg.PlotCurveItem(pen=None) for _ in range(len(PHASES) + 1)]
+        for curve in self._curves:
+            item.addItem(curve)
+        legend = pg.LegendItem(offset=(-4, 2), colCount=len(PHASES), labelTextColor="#3a3a3a",
+                               labelTextSize="8pt", brush=pg.mkBrush(251, 250, 247, 200))
+        legend.setParentItem(item.getViewBox())
+        for i, name in enumerate(PHASES):
+            fill = pg.FillBetweenItem(self._curves[i], self._curves[i + 1], brush=pg.mkBrush(PHASE_COLORS[i]))
+            item.addItem(fill)
+            legend.addItem(pg.BarGraphItem(x=[0], height=[0], width=0, brush=PHASE_COLORS[i], pen=None), name)
+        self._spans = pg.BarGraphItem(x0=[], x1=[], y0=[], height=[], brushes=[])
+        item.addItem(self._spans)
+        self._playhead = pg.InfiniteLine(angle=90, pen=pg.mkPen(PLAYHEAD, width=1.6))
+        item.addItem(self._playhead)
+        document.frameChanged.connect(self._playhead.setValue)
+        document.storyboardChanged.connect(self._on_storyboard)
+        document.resultChanged.connect(self.show_document_phase)
+        self._on_storyboard()
+        self.show_document_phase()
+
+    def set_phase(self, phase: np.ndarray | None) -> None:
+        """Show an occupancy (N, 3), rows summing to 1; None shows an empty strip."""
+        n = self._doc.storyboard.length
+        if phase is None:
+            stacked = np.zeros((len(PHASES) + 1, n))
+        else:
+            phase = np.clip(np.asarray(phase, float), 0, None)
+            stacked = np.vstack([np.zeros(len(phase)), np.cumsum(phase, axis=1).T])
+        x = np.arange(stacked.shape[1], dtype=float)
+        for curve, y in zip(self._curves, stacked):
+            curve.setData(x, y)
+
+    def show_document_phase(self) -> None:
+        """Back to the last finished generation's occupancy (after streaming, cancel or error)."""
+        self.set_phase(self._doc.phase)
+
+    def _on_storyboard(self) -> None:
+        sb = self._doc.storyboard
+        contacts = sb.contacts
+        lanes = np.arange(len(contacts))
+        self._spans.setOpts(x0=[c.start for c in contacts], x1=[c.end + 1 for c in contacts],
+                            y0=-(lanes + 1) * LANE - 0.04, height=LANE * 0.75,
+                            brushes=[pg.mkBrush(sb.agents[sb.agent_index(c.agent)].color) for c in contacts],
+                            pen=pg.mkPen(None))
+        bottom = -(max(len(contacts), 1)) * LANE - 0.06
+        self.getPlotItem().setRange(xRange=(0, sb.length - 1), yRange=(bottom, 1.0), padding=0)
+        self._playhead.setValue(self._doc.frame)
+
+    # ---- scrubbing ---------------------------------------------------------------------------
+    def _scrub(self, event) -> None:
+        view = self.getPlotItem().getViewBox()
+        point = view.mapSceneToView(self.mapToScene(event.position().toPoint()))
+        self._doc.set_frame(int(round(point.x())))
+
+    def mousePressEvent(self, event):
+        if event.button() == Qt.LeftButton:
+            self._scrub(event)
+
+    def mouseMoveEvent(self, event):
+        if event.buttons() & Qt.LeftButton:
+            self._scrub(event)
+
+    def mouseReleaseEvent(self, event):
+        pass
+
+    def wheelEvent(self, event):
+        event.ignore()   # the strip's range follows the storyboard; no zooming by accident

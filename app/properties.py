@@ -1,0 +1,191 @@
+"""The properties panel: selection (agent, joint), the selected object's type and size, the
+contact list, and the generation settings with a picker among the generated variations.
+It reads the document on every change and writes back through setters and commands."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox,
+                               QHBoxLayout, QListWidget, QPushButton, QSpinBox, QVBoxLayout, QWidget)
+
+from engine.objects import DEFAULT_SIZES, OBJECT_TYPES
+from engine.skeleton import JOINT_NAMES
+
+from . import commands as cmd
+from .document import OBJECT_PATH, Document
+
+# The joints artists draw paths for most, first; then the rest of the skeleton.
+PATH_JOINTS = ("pelvis", "head", "l_wrist", "r_wrist", "l_foot", "r_foot")
+JOINT_CHOICES = PATH_JOINTS + tuple(j for j in JOINT_NAMES if j not in PATH_JOINTS) + (OBJECT_PATH,)
+
+
+class PropertiesPanel(QWidget):
+    objectShapeChanged = Signal(str)   # "rectangle" or "lasso", for the object tool
+
+    def __init__(self, document: Document, parent: QWidget | None = None):
+        super().__init__(parent)
+        self._doc = document
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(6, 6, 6, 6)
+
+        box = QGroupBox("Selection")
+        form = QFormLayout(box)
+        self.agent = QComboBox()
+        self.joint = QComboBox()
+        self.joint.addItems(JOINT_CHOICES)
+        self.joint.insertSeparator(len(PATH_JOINTS))
+        self.joint.insertSeparator(len(JOINT_CHOICES))
+        form.addRow("Agent", self.agent)
+        form.addRow("Joint", self.joint)
+        layout.addWidget(box)
+
+        box = QGroupBox("Object")
+        form = QFormLayout(box)
+        self.object = QComboBox()
+        self.object_type = QComboBox()
+        self.object_type.addItems(OBJECT_TYPES)
+        self.size = [self._spin(0.05, 5.0, 0.05, 2, " m") for _ in range(3)]
+        sizes = QHBoxLayout()
+        for spin in self.size:
+            sizes.addWidget(spin)
+        self.shape = QComboBox()
+        self.shape.addItems(["rectangle", "lasso"])
+        form.addRow("Object", self.object)
+        form.addRow("Type", self.object_type)
+        form.addRow("W \u00d7 H \u00d7 D", sizes)
+        form.addRow("Draw as", self.shape)
+        layout.addWidget(box)
+
+        box = QGroupBox("Contacts")
+        inner = QVBoxLayout(box)
+        self.contacts = QListWidget()
+        self.contacts.setMaximumHeight(90)
+        self.delete_contact = QPushButton("Delete contact")
+        inner.addWidget(self.contacts)
+        inner.addWidget(self.delete_contact)
+        layout.addWidget(box)
+
+        box = QGroupBox("Generation")
+        form = QFormLayout(box)
+        self.seed = QSpinBox()
+        self.seed.setRange(0, 2**31 - 1)
+        self.steps = QSpinBox()
+        self.steps.setRange(1, 200)
+        self.cfg = self._spin(0.0, 5.0, 0.1, 2)
+        self.use_energy = QCheckBox("Energies")
+        self.use_ctmc = QCheckBox("CTMC phases")
+        self.variations = QSpinBox()
+        self.variations.setRange(1, 8)
+        self.variation = QComboBox()
+        form.addRow("Seed", self.seed)
+        form.addRow("Steps", self.steps)
+        form.addRow("Guidance", self.cfg)
+        toggles = QHBoxLayout()
+        toggles.addWidget(self.use_energy)
+        toggles.addWidget(self.use_ctmc)
+        form.addRow(toggles)
+        form.addRow("Variations", self.variations)
+        form.addRow("Show", self.variation)
+        layout.addWidget(box)
+        layout.addStretch(1)
+
+        self.agent.activated.connect(lambda i: document.select(agent=self.agent.itemData(i)))
+        self.joint.activated.connect(lambda i: document.select(joint=self.joint.itemText(i)))
+        self.object.activated.connect(lambda i: document.select(object=self.object.itemData(i)))
+        self.object_type.activated.connect(self._apply_object)
+        for spin in self.size:
+            spin.editingFinished.connect(self._apply_object)
+        self.shape.currentTextChanged.connect(self.objectShapeChanged)
+        self.delete_contact.clicked.connect(self._delete_contact)
+        self.contacts.currentRowChanged.connect(lambda row: self.delete_contact.setEnabled(row >= 0))
+        for widget in (self.seed, self.steps, self.cfg, self.variations):
+            widget.valueChanged.connect(self._apply_settings)
+        for box in (self.use_energy, self.use_ctmc):
+            box.toggled.connect(self._apply_settings)
+        self.variation.activated.connect(document.choose_variation)
+
+        document.storyboardChanged.connect(self.refresh)
+        document.selectionChanged.connect(self.refresh)
+        document.settingsChanged.connect(self.refresh)
+        document.resultChanged.connect(self.refresh)
+        self.refresh()
+
+    @staticmethod
+    def _spin(lo: float, hi: float, step: float, decimals: int, suffix: str = "") -> QDoubleSpinBox:
+        spin = QDoubleSpinBox()
+        spin.setRange(lo, hi)
+        spin.setSingleStep(step)
+        spin.setDecimals(decimals)
+        spin.setSuffix(suffix)
+        return spin
+
+    # ---- document -> widgets -------------------------------------------------------------------
+    def refresh(self) -> None:
+        doc, sb, sel = self._doc, self._doc.storyboard, self._doc.selection
+        widgets = [self.agent, self.joint, self.object, self.object_type, *self.size, self.contacts,
+                   self.seed, self.steps, self.cfg, self.use_energy, self.use_ctmc, self.variations, self.variation]
+        for w in widgets:
+            w.blockSignals(True)
+        self.agent.clear()
+        for a in sb.agents:
+            self.agent.addItem(a.name or a.id, a.id)
+        self.agent.setCurrentIndex(self.agent.findData(sel.agent))
+        self.joint.setCurrentIndex(self.joint.findText(sel.joint))
+        self.object.clear()
+        for o in sb.objects:
+            self.object.addItem(o.id, o.id)
+        self.object.setCurrentIndex(self.object.findData(sel.object))
+        obj = next((o for o in sb.objects if o.id == sel.object), None)
+        for w in (self.object_type, *self.size):
+            w.setEnabled(obj is not None)
+        if obj is not None:
+            self.object_type.setCurrentText(obj.spec.type)
+            for spin, value in zip(self.size, obj.spec.size):
+                spin.setValue(value)
+        row = self.contacts.currentRow()
+        self.contacts.clear()
+        self.contacts.addItems([_describe_contact(c) for c in sb.contacts])
+        self.contacts.setCurrentRow(min(row, self.contacts.count() - 1))
+        self.delete_contact.setEnabled(self.contacts.currentRow() >= 0)
+        s = doc.settings
+        self.seed.setValue(s.seed)
+        self.steps.setValue(s.steps)
+        self.cfg.setValue(s.cfg)
+        self.use_energy.setChecked(s.use_energy)
+        self.use_ctmc.setChecked(s.use_ctmc)
+        self.variations.setValue(s.variations)
+        self.variation.clear()
+        self.variation.addItems([f"Variation {i + 1} of {len(doc.clips)}" for i in range(len(doc.clips))])
+        self.variation.setCurrentIndex(doc.variation if doc.clips else -1)
+        self.variation.setEnabled(len(doc.clips) > 1)
+        for w in widgets:
+            w.blockSignals(False)
+
+    # ---- widgets -> document -------------------------------------------------------------------
+    def _apply_object(self, *_):
+        sel = self._doc.selection.object
+        if sel is None:
+            return
+        spec = self._doc.storyboard.objects[self._doc.storyboard.object_index(sel)].spec
+        kind = self.object_type.currentText()
+        size = tuple(round(s.value(), 4) for s in self.size)
+        if kind != spec.type:
+            size = DEFAULT_SIZES[kind]   # a new type starts at its usual size
+        if kind != spec.type or size != tuple(round(v, 4) for v in spec.size):
+            self._doc.undo_stack.push(cmd.SetObjectSpec(self._doc, sel, kind, size))
+
+    def _apply_settings(self, *_):
+        self._doc.set_settings(replace(self._doc.settings, seed=self.seed.value(), steps=self.steps.value(),
+                                       cfg=round(self.cfg.value(), 3), use_energy=self.use_energy.isChecked(),
+                                       use_ctmc=self.use_ctmc.isChecked(), variations=self.variations.value()))
+
+    def _delete_contact(self):
+        row = self.contacts.currentRow()
+        if row >= 0:
+            self._doc.undo_stack.push(cmd.DeleteContact(self._doc, row))
+
+
+def _describe_contact(c) -> str:
+    held = f"{c.object} anchor {c.anchor}" if c.object is not None else f"{c.other_agent} {c.other_hand} hand"
+    return f"{c.agent} {c.hand} hand \u2192 {held}   [{c.start}\u2013{c.end}]"

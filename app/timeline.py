@@ -1,0 +1,210 @@
+"""The timeline: a ruler, one track per agent and per object with keyframe markers, the
+playhead, and the frame span used by new trajectories and contacts.
+
+Mouse: click or drag to scrub; drag a marker to retime it; shift-drag to select a frame span
+(click without shift clears it); double-click an agent's track to add a keypose there (a copy
+of the previous keyframe); right-click a marker to delete it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from PySide6.QtCore import QPointF, QRectF, Qt
+from PySide6.QtGui import QColor, QPainter, QPen, QPolygonF
+from PySide6.QtWidgets import QMenu, QWidget
+
+from . import commands as cmd
+from .document import Document
+from .poses import new_keypose
+
+LABEL_W = 72      # the track-name column; the phase strip's axis is made as wide to line up
+RULER_H = 20
+ROW_H = 22
+MARGIN = 12
+PLAYHEAD = QColor("#d1495b")
+SPAN = QColor(46, 134, 171, 40)
+
+
+@dataclass(frozen=True)
+class Track:
+    kind: str     # "agent" or "object"
+    owner: str
+    color: str
+
+
+def frame_to_x(frame: float, length: int, width: int) -> float:
+    return LABEL_W + frame * (width - LABEL_W - MARGIN) / max(length - 1, 1)
+
+
+def x_to_frame(x: float, length: int, width: int) -> int:
+    f = (x - LABEL_W) * max(length - 1, 1) / max(width - LABEL_W - MARGIN, 1)
+    return int(np.clip(round(f), 0, length - 1))
+
+
+class Timeline(QWidget):
+    def __init__(self, document: Document, parent: QWidget | None = None):
+        super().__init__(parent)
+        self._doc = document
+        self._drag: tuple[str, object] | None = None   # ("scrub", None) | ("span", start) | ("marker", (track, old, new))
+        for signal in (document.storyboardChanged, document.frameChanged, document.spanChanged,
+                       document.selectionChanged):
+            signal.connect(self._refresh)
+        self._refresh()
+
+    def tracks(self) -> list[Track]:
+        sb = self._doc.storyboard
+        return ([Track("agent", a.id, a.color) for a in sb.agents]
+                + [Track("object", o.id, "#8a6d3b") for o in sb.objects])
+
+    def key_frames(self, track: Track) -> list[int]:
+        sb = self._doc.storyboard
+        keys = sb.keyposes if track.kind == "agent" else sb.object_keys
+        attr = "agent" if track.kind == "agent" else "object"
+        return sorted({k.frame for k in keys if getattr(k, attr) == track.owner})
+
+    def _refresh(self, *_):
+        self.setMinimumHeight(RULER_H + ROW_H * len(self.tracks()) + 4)
+        self.update()
+
+    # ---- geometry ------------------------------------------------------------------------------
+    def _x(self, frame: float) -> float:
+        return frame_to_x(frame, self._doc.storyboard.length, self.width())
+
+    def _frame(self, x: float) -> int:
+        return x_to_frame(x, self._doc.storyboard.length, self.width())
+
+    def _row(self, y: float) -> int | None:
+        row = int((y - RULER_H) // ROW_H)
+        return row if y >= RULER_H and row < len(self.tracks()) else None
+
+    def marker_at(self, x: float, y: float) -> tuple[Track, int] | None:
+        row = self._row(y)
+        if row is None:
+            return None
+        track = self.tracks()[row]
+        for f in self.key_frames(track):
+            if abs(self._x(f) - x) <= 6:
+                return track, f
+        return None
+
+    # ---- mouse -----------------------------------------------------------------------------------
+    def mousePressEvent(self, event):
+        x, y = event.position().x(), event.position().y()
+        frame = self._frame(x)
+        marker = self.marker_at(x, y)
+        if event.button() == Qt.RightButton:
+            if marker:
+                self._offer_delete(marker, event.globalPosition().toPoint())
+            return
+        if event.button() != Qt.LeftButton:
+            return
+        row = self._row(y)
+        if row is not None and self.tracks()[row].kind == "agent":
+            self._doc.select(agent=self.tracks()[row].owner)
+        if event.modifiers() & Qt.ShiftModifier:
+            self._drag = ("span", frame)
+        elif marker:
+            self._drag = ("marker", (marker[0], marker[1], marker[1]))
+            self._doc.set_frame(marker[1])
+        else:
+            self._drag = ("scrub", None)
+            self._doc.set_span(None)
+            self._doc.set_frame(frame)
+
+    def mouseMoveEvent(self, event):
+        if self._drag is None:
+            return
+        frame = self._frame(event.position().x())
+        kind, data = self._drag
+        if kind == "scrub":
+            self._doc.set_frame(frame)
+        elif kind == "span":
+            self._doc.set_span((data, frame))
+        else:
+            self._drag = ("marker", (data[0], data[1], frame))
+            self._doc.set_frame(frame)
+            self.update()
+
+    def mouseReleaseEvent(self, event):
+        drag, self._drag = self._drag, None
+        if drag and drag[0] == "marker":
+            track, old, new = drag[1]
+            if new != old:
+                self._doc.undo_stack.push(cmd.RetimeKeyframe(self._doc, track.kind, track.owner, old, new))
+
+    def mouseDoubleClickEvent(self, event):
+        row = self._row(event.position().y())
+        if row is None or self.tracks()[row].kind != "agent":
+            return
+        agent, frame = self.tracks()[row].owner, self._frame(event.position().x())
+        if cmd.find_keypose(self._doc.storyboard, agent, frame) is None:
+            points, mask = new_keypose(self._doc.storyboard, agent, frame)
+            self._doc.undo_stack.push(cmd.SetKeypose(self._doc, agent, frame, points, mask))
+        self._doc.set_frame(frame)
+
+    def _offer_delete(self, marker: tuple[Track, int], where) -> None:
+        track, frame = marker
+        menu = QMenu(self)
+        action = menu.addAction(f"Delete keyframe {frame}")
+        if menu.exec(where) is action:
+            delete_keyframe(self._doc, track.kind, track.owner, frame)
+
+    # ---- painting ------------------------------------------------------------------------------
+    def paintEvent(self, event):
+        p = QPainter(self)
+        p.setRenderHint(QPainter.Antialiasing)
+        p.fillRect(self.rect(), QColor("#fbfaf7"))
+        sb = self._doc.storyboard
+        w = self.width()
+        # Ruler: a tick every 5 frames, a label every 20 (or 10 when wide).
+        every = 10 if w / max(sb.length, 1) > 6 else 20
+        p.setPen(QColor("#8a857a"))
+        for f in range(0, sb.length, 5):
+            x = self._x(f)
+            labelled = f % every == 0
+            p.drawLine(QPointF(x, RULER_H - (8 if labelled else 4)), QPointF(x, RULER_H))
+            if labelled:
+                p.drawText(QPointF(x + 2, RULER_H - 8), str(f))
+        # Frame span.
+        if self._doc.span:
+            lo, hi = self._doc.span
+            p.fillRect(QRectF(QPointF(self._x(lo), 0), QPointF(self._x(hi), self.height())), SPAN)
+        # Tracks.
+        moving = self._drag[1] if self._drag and self._drag[0] == "marker" else None
+        for row, track in enumerate(self.tracks()):
+            top = RULER_H + row * ROW_H
+            selected = track.kind == "agent" and track.owner == self._doc.selection.agent
+            p.fillRect(QRectF(0, top, w, ROW_H - 1), QColor("#f1eee7" if selected else "#f7f5f0"))
+            p.fillRect(QRectF(0, top + 3, 4, ROW_H - 7), QColor(track.color))
+            p.setPen(QColor("#3a3a3a"))
+            p.drawText(QRectF(10, top, LABEL_W - 12, ROW_H), Qt.AlignVCenter, track.owner)
+            for f in self.key_frames(track):
+                if moving and moving[0] == track and moving[1] == f:
+                    f = moving[2]
+                self._diamond(p, self._x(f), top + ROW_H / 2, QColor(track.color))
+        # Playhead.
+        x = self._x(self._doc.frame)
+        p.setPen(QPen(PLAYHEAD, 1.6))
+        p.drawLine(QPointF(x, 0), QPointF(x, self.height()))
+        p.setBrush(PLAYHEAD)
+        p.drawPolygon(QPolygonF([QPointF(x - 5, 0), QPointF(x + 5, 0), QPointF(x, 7)]))
+        p.end()
+
+    @staticmethod
+    def _diamond(p: QPainter, x: float, y: float, color: QColor):
+        r = 5.5
+        p.setPen(QPen(color.darker(150), 1))
+        p.setBrush(color)
+        p.drawPolygon(QPolygonF([QPointF(x, y - r), QPointF(x + r, y), QPointF(x, y + r), QPointF(x - r, y)]))
+
+
+def delete_keyframe(document: Document, kind: str, owner: str, frame: int) -> None:
+    """Delete an agent's keypose or an object's key at `frame` (undoable)."""
+    if kind == "agent":
+        document.undo_stack.push(cmd.DeleteKeypose(document, owner, frame))
+        return
+    for i, k in enumerate(document.storyboard.object_keys):
+        if k.object == owner and k.frame == frame:
+            document.undo_stack.push(cmd.DeleteObjectKey(document, i))
+            return

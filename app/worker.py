@@ -1,0 +1,155 @@
+"""Generation on a QThread, after napari's generator workers.
+
+The worker drives a generator of StepEvents on its own thread. Steps reach the GUI through a
+one-slot mailbox: the worker overwrites the latest event and signals only when the GUI has taken
+the previous one, so a fast sampler never builds a backlog in the GUI's event queue (the GUI
+simply skips to the newest step) and a slow one delivers every step. Cancel sets a flag the
+worker checks between steps; it then closes the generator, which cancels the sampler.
+"""
+from __future__ import annotations
+
+import threading
+import traceback
+from collections.abc import Callable
+
+from PySide6.QtCore import QObject, QThread, Signal, Slot
+
+from engine.sampling.events import GenerationResult, StepEvent
+
+from .generation import StepStream
+
+
+class GenerationWorker(QObject):
+    stepReady = Signal()                 # take_latest() has an event
+    finished = Signal(object)            # GenerationResult
+    failed = Signal(str)                 # one-line message
+    cancelled = Signal()
+
+    def __init__(self, make_stream: Callable[[], StepStream], torch_threads: int = 2):
+        super().__init__()
+        self._make_stream = make_stream
+        self._torch_threads = torch_threads
+        self._cancel = threading.Event()
+        self._lock = threading.Lock()
+        self._latest: StepEvent | None = None
+
+    def cancel(self) -> None:
+        """Thread-safe; the worker stops before its next step."""
+        self._cancel.set()
+
+    def take_latest(self) -> StepEvent | None:
+        with self._lock:
+            event, self._latest = self._latest, None
+        return event
+
+    def _post(self, event: StepEvent) -> None:
+        with self._lock:
+            waiting = self._latest is not None
+            self._latest = event
+        if not waiting:
+            self.stepReady.emit()
+
+    @Slot()
+    def run(self) -> None:
+        import torch
+        torch.set_num_threads(self._torch_threads)  # this thread's intra-op pool; 2 cores here
+        stream = None
+        try:
+            stream = self._make_stream()
+            while True:
+                if self._cancel.is_set():
+                    stream.close()
+                    self.cancelled.emit()
+                    return
+                try:
+                    event = next(stream)
+                except StopIteration as stop:
+                    result: GenerationResult = stop.value
+                    self.finished.emit(result)
+                    return
+                self._post(event)
+        except Exception as e:  # any sampler failure becomes a message; the document is untouched
+            traceback.print_exc()
+            if stream is not None:
+                stream.close()
+            self.failed.emit(f"{type(e).__name__}: {e}".splitlines()[0])
+
+
+class GenerationRunner(QObject):
+    """Owns the thread of the current generation: start, cancel, and a clean shutdown."""
+    started = Signal()
+    step = Signal(object)            # StepEvent, on the GUI thread, newest first-come
+    finished = Signal(object)        # GenerationResult
+    failed = Signal(str)
+    cancelled = Signal()
+    runningChanged = Signal(bool)
+
+    def __init__(self, parent: QObject | None = None):
+        super().__init__(parent)
+        self._thread: QThread | None = None
+        self._worker: GenerationWorker | None = None
+
+    @property
+    def running(self) -> bool:
+        return self._worker is not None
+
+    def start(self, make_stream: Callable[[], StepStream]) -> bool:
+        """Run `make_stream()` to completion on a new thread. False when one is already running."""
+        if self.running:
+            return False
+        self._thread = QThread()
+        self._thread.setObjectName("generation")
+        self._worker = GenerationWorker(make_stream)
+        self._worker.moveToThread(self._thread)
+        self._thread.started.connect(self._worker.run)
+        self._worker.stepReady.connect(self._on_step_ready)
+        self._worker.finished.connect(self._on_finished)
+        self._worker.failed.connect(self._on_failed)
+        self._worker.cancelled.connect(self._on_cancelled)
+        self._thread.start()
+        self.runningChanged.emit(True)
+        self.started.emit()
+        return True
+
+    def cancel(self) -> None:
+        if self._worker is not None:
+            self._worker.cancel()
+
+    def shutdown(self, timeout_ms: int = 5000) -> None:
+        """Cancel and join the thread (window close, tests)."""
+        if self._worker is not None:
+            self._worker.cancel()
+        if self._thread is not None:
+            self._thread.quit()
+            self._thread.wait(timeout_ms)
+        self._release()
+
+    def _on_step_ready(self) -> None:
+        event = self._worker.take_latest() if self._worker else None
+        if event is not None:
+            self.step.emit(event)
+
+    def _on_finished(self, result: GenerationResult) -> None:
+        self._on_step_ready()  # a last step may still sit in the mailbox
+        self._end()
+        self.finished.emit(result)
+
+    def _on_failed(self, message: str) -> None:
+        self._end()
+        self.failed.emit(message)
+
+    def _on_cancelled(self) -> None:
+        self._end()
+        self.cancelled.emit()
+
+    def _end(self) -> None:
+        self._thread.quit()
+        self._thread.wait()
+        self._release()
+
+    def _release(self) -> None:
+        if self._worker is not None:
+            self._worker.deleteLater()
+            self._thread.deleteLater()
+            self._worker = self._thread = None
+            self.runningChanged.emit(False)

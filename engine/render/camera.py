@@ -1,0 +1,75 @@
+"""The viewport's orbit camera and the 4x4 matrices it produces.
+
+Angles follow engine/camera.py: yaw about +Y (0 looks from +Z, 90 from +X), pitch above the
+horizon, both in degrees. Matrices are row-major numpy (4, 4) float32 acting on column vectors;
+transpose them when handing them to GL.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+MIN_PITCH, MAX_PITCH = -10.0, 89.0
+MIN_DISTANCE, MAX_DISTANCE = 0.3, 200.0
+
+
+@dataclass
+class OrbitCamera:
+    yaw: float = 35.0
+    pitch: float = 18.0
+    distance: float = 6.0
+    target: tuple[float, float, float] = (0.0, 0.9, 0.0)
+    fov: float = 40.0  # vertical field of view, degrees
+
+    def basis(self) -> np.ndarray:
+        """(3, 3) rows: right, up, towards-camera unit vectors in world coordinates."""
+        y, p = math.radians(self.yaw), math.radians(self.pitch)
+        back = np.array([math.cos(p) * math.sin(y), math.sin(p), math.cos(p) * math.cos(y)])
+        right = np.array([math.cos(y), 0.0, -math.sin(y)])
+        return np.stack([right, np.cross(back, right), back])
+
+    def eye(self) -> np.ndarray:
+        return np.asarray(self.target, float) + self.distance * self.basis()[2]
+
+    def view_matrix(self) -> np.ndarray:
+        right, up, back = self.basis()
+        m = np.eye(4)
+        m[:3, :3] = np.stack([right, up, back])
+        m[:3, 3] = -m[:3, :3] @ self.eye()
+        return m.astype(np.float32)
+
+    def projection_matrix(self, aspect: float) -> np.ndarray:
+        near, far = max(0.02, self.distance * 0.02), self.distance * 20 + 50
+        f = 1.0 / math.tan(math.radians(self.fov) / 2)
+        m = np.zeros((4, 4))
+        m[0, 0], m[1, 1] = f / aspect, f
+        m[2, 2], m[2, 3] = (far + near) / (near - far), 2 * far * near / (near - far)
+        m[3, 2] = -1.0
+        return m.astype(np.float32)
+
+    # ---- interaction -----------------------------------------------------------------------
+    def orbit(self, d_yaw: float, d_pitch: float) -> None:
+        """Turn around the target by degrees; pitch stays between just below the horizon and top-down."""
+        self.yaw = (self.yaw + d_yaw) % 360.0
+        self.pitch = min(MAX_PITCH, max(MIN_PITCH, self.pitch + d_pitch))
+
+    def pan(self, dx: float, dy: float) -> None:
+        """Slide the target in the view plane; dx, dy are fractions of the view height."""
+        height = 2 * self.distance * math.tan(math.radians(self.fov) / 2)
+        right, up, _ = self.basis()
+        self.target = tuple(np.asarray(self.target, float) + height * (-dx * right + dy * up))
+
+    def zoom(self, factor: float) -> None:
+        """Multiply the distance to the target (factor < 1 moves closer)."""
+        self.distance = min(MAX_DISTANCE, max(MIN_DISTANCE, self.distance * factor))
+
+    def frame_all(self, bounds: np.ndarray, aspect: float = 16 / 9) -> None:
+        """Aim at and fit a world box, bounds (2, 3) = min corner, max corner, keeping the angles."""
+        lo, hi = np.asarray(bounds, float)
+        self.target = tuple((lo + hi) / 2)
+        radius = max(0.25, float(np.linalg.norm(hi - lo)) / 2)
+        half_v = math.radians(self.fov) / 2
+        half = min(half_v, math.atan(math.tan(half_v) * aspect))
+        self.distance = min(MAX_DISTANCE, 1.05 * radius / math.sin(half))

@@ -1,0 +1,69 @@
+"""Exact-length two-bone IK and the heading frames the synthesizer poses people in.
+
+A person's heading is a yaw about +Y; yaw 0 faces +Z (the rest pose), so the forward vector is
+(sin yaw, 0, cos yaw) and the left vector (cos yaw, 0, -sin yaw).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..rotations import normalize
+
+UP = np.array([0.0, 1.0, 0.0])
+
+
+def yaw_matrix(yaw: np.ndarray) -> np.ndarray:
+    """Rotation about +Y. (...) -> (..., 3, 3)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    zero, one = np.zeros_like(yaw), np.ones_like(yaw)
+    return np.stack([c, zero, s, zero, one, zero, -s, zero, c], axis=-1).reshape(np.shape(yaw) + (3, 3))
+
+
+def pitch_matrix(angle: np.ndarray) -> np.ndarray:
+    """Rotation about +X; a positive angle tips +Y towards +Z (a forward bend). (...) -> (..., 3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    zero, one = np.zeros_like(angle), np.ones_like(angle)
+    return np.stack([one, zero, zero, zero, c, -s, zero, s, c], axis=-1).reshape(np.shape(angle) + (3, 3))
+
+
+def heading_of(direction: np.ndarray) -> np.ndarray:
+    """Yaw that faces a horizontal direction. (..., 3) -> (...)."""
+    return np.arctan2(direction[..., 0], direction[..., 2])
+
+
+def forward_of(yaw: np.ndarray) -> np.ndarray:
+    """(...) -> (..., 3) unit forward vector on the ground plane."""
+    return np.stack([np.sin(yaw), np.zeros_like(yaw), np.cos(yaw)], axis=-1)
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def to_local(points: np.ndarray, origin: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """World points (N, ..., 3) into heading frames given by origin (N, 3) and yaw (N,)."""
+    R = yaw_matrix(yaw)
+    shape = (points.shape[0],) + (1,) * (points.ndim - 2)
+    rel = points - origin.reshape(shape + (3,))
+    return np.einsum("nji,n...j->n...i", R, rel)
+
+
+def two_bone_ik(root: np.ndarray, target: np.ndarray, upper: float, lower: float,
+                pole: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Place the middle and end joints of a two-bone chain with exact bone lengths.
+
+    root, target, pole: (..., 3); `pole` is a direction the middle joint bends towards.
+    Returns (middle, end), each (..., 3). The end equals the target when it is within reach;
+    otherwise it is the closest reachable point on the line from root to target.
+    """
+    to_target = target - root
+    dist = np.linalg.norm(to_target, axis=-1, keepdims=True)
+    axis = to_target / np.maximum(dist, 1e-9)
+    # Keep a hair of bend so the knee/elbow direction stays defined.
+    reach = np.clip(dist, abs(upper - lower) + 1e-6, (upper + lower) * (1 - 1e-6))
+    cos_root = (upper ** 2 + reach ** 2 - lower ** 2) / (2 * upper * reach)
+    sin_root = np.sqrt(np.maximum(1 - cos_root ** 2, 0.0))
+    side = normalize(pole - np.sum(pole * axis, axis=-1, keepdims=True) * axis)
+    middle = root + upper * (cos_root * axis + sin_root * side)
+    end = root + reach * axis
+    return middle, end

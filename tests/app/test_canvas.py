@@ -1,0 +1,126 @@
+"""Sketching on the canvas with real mouse events."""
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, Qt
+
+from app import commands as cmd
+from app.canvas import SketchCanvas
+from app.document import Document
+from engine.skeleton import JOINT_INDEX
+
+from .fakes import sample_storyboard
+
+
+@pytest.fixture
+def canvas(qtbot):
+    widget = SketchCanvas(Document())
+    widget.resize(800, 600)
+    qtbot.addWidget(widget)
+    widget.show()
+    qtbot.waitExposed(widget)
+    return widget
+
+
+def px(canvas, uv) -> QPoint:
+    x, y = canvas.to_px(uv)
+    return QPoint(round(x), round(y))
+
+
+def drag(qtbot, canvas, points_uv, button=Qt.LeftButton):
+    qtbot.mousePress(canvas, button, pos=px(canvas, points_uv[0]))
+    for uv in points_uv[1:]:
+        qtbot.mouseMove(canvas, px(canvas, uv))
+    qtbot.mouseRelease(canvas, button, pos=px(canvas, points_uv[-1]))
+
+
+def test_pixels_and_metres_round_trip(canvas):
+    uv = np.array([[0.3, -0.2], [1.0, 1.0]])
+    assert canvas.to_uv(canvas.to_px(uv)) == pytest.approx(uv)
+
+
+def test_draw_a_trajectory(qtbot, canvas):
+    doc = canvas._doc
+    doc.set_tool("trajectory")
+    doc.select(agent="B", joint="r_wrist")
+    stroke = np.stack([np.linspace(-0.8, 0.8, 40), 0.2 * np.sin(np.linspace(0, 3, 40))], -1)
+    drag(qtbot, canvas, stroke)
+    [t] = doc.storyboard.trajectories
+    assert (t.agent, t.joint, t.start, t.end) == ("B", "r_wrist", 0, doc.storyboard.length - 1)
+    assert t.points[0] == pytest.approx(stroke[0], abs=0.01)
+    assert t.points[-1] == pytest.approx(stroke[-1], abs=0.01)
+    doc.storyboard.validate()
+
+    # A stroke that starts and ends on the path redraws just that part.
+    bump = np.stack([np.linspace(-0.2, 0.2, 15), np.array([0.0] + [0.5] * 13 + [0.0])], -1)
+    bump[:, 1] += np.interp(bump[:, 0], t.points[:, 0], t.points[:, 1])
+    bump[1:-1, 1] = 0.6
+    drag(qtbot, canvas, bump)
+    [redrawn] = doc.storyboard.trajectories
+    assert redrawn.points[:, 1].max() > 0.4
+    assert redrawn.points[0] == pytest.approx(t.points[0]) and redrawn.points[-1] == pytest.approx(t.points[-1])
+
+    doc.undo_stack.undo()
+    assert doc.storyboard.trajectories[0].points == pytest.approx(t.points)
+    doc.undo_stack.undo()
+    assert doc.storyboard.trajectories == []
+    doc.undo_stack.redo()
+    assert doc.storyboard.trajectories[0].points == pytest.approx(t.points)
+
+
+def test_place_and_pose_a_keypose(qtbot, canvas):
+    doc = canvas._doc
+    doc.set_tool("keypose")
+    doc.set_frame(30)
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (0.0, 0.0)))
+    k = cmd.find_keypose(doc.storyboard, "A", 30)
+    assert k is not None and k.mask.all()
+    wrist = JOINT_INDEX["r_wrist"]
+    start = k.points[wrist].copy()
+    target = start + (0.15, 0.5)
+    drag(qtbot, canvas, [start, start + (0.05, 0.2), target])
+    moved = cmd.find_keypose(doc.storyboard, "A", 30).points[wrist]
+    assert moved == pytest.approx(target, abs=1.5 / canvas.zoom)
+    assert doc.selection.joint == "r_wrist"
+    doc.undo_stack.undo()
+    assert cmd.find_keypose(doc.storyboard, "A", 30).points[wrist] == pytest.approx(start)
+    doc.undo_stack.redo()
+    assert cmd.find_keypose(doc.storyboard, "A", 30).points[wrist] == pytest.approx(moved)
+
+
+def test_object_contact_and_erase_tools(qtbot, canvas):
+    doc = canvas._doc
+    doc.replace_storyboard(sample_storyboard(), None)
+    doc.set_frame(90)
+    doc.set_tool("object")
+    drag(qtbot, canvas, [np.array([-1.5, -0.9]), np.array([-1.2, -0.6]), np.array([-1.0, -0.5])])
+    key = doc.storyboard.object_keys[-1]
+    assert key.frame == 90 and len(key.outline) == 4
+    # Contact: A's right hand to the new key's anchor 1 (right side).
+    doc.set_tool("contact")
+    hand = cmd.find_keypose(doc.storyboard, "A", 60).points[JOINT_INDEX["r_wrist"]]
+    doc.set_frame(60)
+    doc.set_span((60, 80))
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, hand))
+    box = doc.storyboard.object_keys[0].outline
+    anchor = np.array([box[:, 0].max(), box[:, 1].mean()])
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, anchor))
+    c = doc.storyboard.contacts[-1]
+    assert (c.agent, c.hand, c.object, c.anchor, c.start, c.end) == ("A", "right", "box1", 1, 60, 80)
+    count = len(doc.storyboard.trajectories)
+    doc.set_tool("erase")
+    t = doc.storyboard.trajectories[0]
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, t.points[len(t.points) // 3]))
+    assert len(doc.storyboard.trajectories) == count - 1
+    doc.storyboard.validate()
+
+
+def test_wheel_zoom_keeps_the_point_under_the_cursor(qtbot, canvas):
+    from PySide6.QtCore import QPointF
+    from PySide6.QtGui import QWheelEvent
+    at = QPointF(200, 150)
+    before = canvas.to_uv([200, 150])
+    event = QWheelEvent(at, canvas.mapToGlobal(at), QPoint(), QPoint(0, 240), Qt.NoButton,
+                        Qt.NoModifier, Qt.NoScrollPhase, False)
+    canvas.wheelEvent(event)
+    assert canvas.zoom > 170
+    assert canvas.to_uv([200, 150]) == pytest.approx(before)

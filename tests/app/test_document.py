@@ -1,0 +1,110 @@
+"""The document model and its commands, without any widget."""
+import numpy as np
+import pytest
+
+from app import commands as cmd
+from app.document import Document
+from app.strokes import clean_stroke, splice
+from engine.storyboard import Contact, Storyboard, Trajectory
+
+from .fakes import sample_storyboard
+
+
+def snapshot(doc: Document) -> str:
+    return doc.storyboard.to_json()
+
+
+def check_undo_redo(doc: Document, command) -> None:
+    """Pushing, undoing and redoing `command` changes, restores and re-applies the storyboard."""
+    before = snapshot(doc)
+    doc.undo_stack.push(command)
+    after = snapshot(doc)
+    assert after != before
+    doc.storyboard.validate()
+    doc.undo_stack.undo()
+    assert snapshot(doc) == before
+    doc.undo_stack.redo()
+    assert snapshot(doc) == after
+
+
+@pytest.fixture
+def doc():
+    return Document(sample_storyboard())
+
+
+def test_every_command_undoes_and_redoes(doc):
+    sb = doc.storyboard
+    k = sb.keyposes[0]
+    line = np.array([[0.0, 0.0], [0.5, 0.2], [1.0, 0.0]])
+    edits = [
+        cmd.SetKeypose(doc, "A", 10, k.points + 0.1, k.mask),
+        cmd.MoveKeyposeJoint(doc, "A", 0, 20, (0.3, 0.4)),
+        cmd.DeleteKeyposeJoint(doc, "A", 0, 20),
+        cmd.MirrorKeypose(doc, "B", 60),
+        cmd.DeleteKeypose(doc, "B", 0),
+        cmd.RetimeKeyframe(doc, "agent", "A", 60, 70),
+        cmd.RetimeKeyframe(doc, "object", "box1", 60, 50),
+        cmd.AddStroke(doc, "trajectories", Trajectory("B", "r_wrist", 10, 40, line)),
+        cmd.ReplaceStroke(doc, "trajectories", 0, Trajectory("A", "pelvis", 0, 119, line)),
+        cmd.EraseStroke(doc, "object_paths", 0),
+        cmd.SetObjectKey(doc, "box1", 90, line),
+        cmd.SetObjectKey(doc, "table1", 20, line, kind="table"),
+        cmd.MoveObjectKey(doc, 0, (0.2, 0.0)),
+        cmd.DeleteObjectKey(doc, 0),
+        cmd.SetObjectSpec(doc, "box1", "canister", (0.3, 0.5, 0.3)),
+        cmd.AddContact(doc, Contact("A", "left", 5, 15, other_agent="B", other_hand="right")),
+        cmd.DeleteContact(doc, 1),
+    ]
+    for edit in edits:
+        check_undo_redo(doc, edit)
+    assert doc.undo_stack.count() == len(edits)
+    assert doc.dirty
+    while doc.undo_stack.canUndo():
+        doc.undo_stack.undo()
+    assert snapshot(doc) == sample_storyboard().to_json()
+    assert not doc.dirty
+
+
+def test_mirror_swaps_sides_and_reflects(doc):
+    k = cmd.find_keypose(doc.storyboard, "A", 60)
+    before = k.points.copy()
+    doc.undo_stack.push(cmd.MirrorKeypose(doc, "A", 60))
+    after = cmd.find_keypose(doc.storyboard, "A", 60).points
+    from engine.skeleton import JOINT_INDEX
+    l, r = JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"]
+    assert after[l][1] == pytest.approx(before[r][1])
+    assert after[l][0] == pytest.approx(2 * before[0][0] - before[r][0])
+
+
+def test_signals_fire_only_on_change(doc):
+    seen = []
+    doc.frameChanged.connect(seen.append)
+    doc.set_frame(5)
+    doc.set_frame(5)
+    doc.set_frame(10_000)
+    assert seen == [5, 119]
+
+
+def test_save_and_reload_is_byte_identical(doc, tmp_path):
+    path = tmp_path / "sb.json"
+    doc.storyboard.save(path)
+    again = tmp_path / "again.json"
+    Storyboard.load(path).save(again)
+    assert path.read_bytes() == again.read_bytes()
+
+
+def test_stroke_is_smoothed_and_evenly_resampled():
+    raw = np.stack([np.linspace(0, 1, 200), 0.01 * np.random.default_rng(0).normal(size=200)], -1)
+    out = clean_stroke(raw)
+    steps = np.linalg.norm(np.diff(out, axis=0), axis=-1)
+    assert np.allclose(steps, steps.mean(), rtol=0.15)  # chords of an even arc-length split
+    assert np.abs(out[1:-1, 1]).max() < np.abs(raw[:, 1]).max()
+
+
+def test_splice_replaces_only_the_redrawn_part():
+    line = clean_stroke(np.array([[0.0, 0.0], [2.0, 0.0]]))
+    bump = np.array([[0.8, 0.01], [1.0, 0.3], [1.2, 0.01]])
+    out = splice(line, bump, snap=0.05)
+    assert out is not None and out[:, 1].max() > 0.2
+    assert out[0] == pytest.approx([0, 0]) and out[-1] == pytest.approx([2, 0])
+    assert splice(line, bump + 1.0, snap=0.05) is None
