@@ -454,8 +454,8 @@ class SketchCanvas(QWidget):
         for f in before + after:
             points, mask = self._keypose_points(agent, f)
             color = QColor(sb.agents[sb.agent_index(agent)].color)
-            color.setAlpha(55)
-            self._stick_lines(p, points, mask, QPen(color, 2, Qt.DashLine, Qt.RoundCap))
+            color.setAlpha(45)
+            self._stick_lines(p, points, mask, QPen(color, 1.5, Qt.DashLine, Qt.RoundCap))
 
     def _paint_clip_object(self, p: QPainter, clip, o: int, frame: int, alpha: int):
         """An object of the generated clip as the projected outline of its bounding box."""
@@ -498,10 +498,12 @@ class SketchCanvas(QWidget):
         for t in sb.trajectories:
             color = QColor(sb.agents[sb.agent_index(t.agent)].color)
             chosen = t.agent == sel.agent and t.joint == sel.joint
-            self._paint_path(p, t.points, color, 3.0 if chosen else 2.0, f"{t.agent} {t.joint}  {t.start}\u2013{t.end}")
+            self._paint_path(p, t.points, color, 3.0 if chosen else 2.0,
+                             f"{t.agent} {t.joint}  {t.start}\u2013{t.end}" if chosen else "")
         for path in sb.object_paths:
             chosen = sel.joint == OBJECT_PATH and path.object == sel.object
-            self._paint_path(p, path.points, OBJECT_INK, 3.0 if chosen else 2.0, f"{path.object}  {path.start}\u2013{path.end}")
+            self._paint_path(p, path.points, OBJECT_INK, 3.0 if chosen else 2.0,
+                             f"{path.object} path  {path.start}\u2013{path.end}" if chosen else "")
 
     def _paint_path(self, p: QPainter, points: np.ndarray, color: QColor, width: float, label: str):
         p.setPen(QPen(color, width, Qt.SolidLine, Qt.RoundCap, Qt.RoundJoin))
@@ -518,6 +520,8 @@ class SketchCanvas(QWidget):
             tip = px[-1]
             head = [tip, tip - 10 * direction + 5 * normal, tip - 10 * direction - 5 * normal]
             p.drawPolygon(QPolygonF([QPointF(*q) for q in head]))
+        if not label:
+            return
         small = QFont(self.font())
         small.setPointSizeF(max(7.0, small.pointSizeF() - 1.5))
         p.setFont(small)

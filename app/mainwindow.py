@@ -24,7 +24,7 @@ from .autosave import Autosaver, find_recovery
 from .canvas import SketchCanvas
 from .document import TOOLS, Document, new_storyboard
 from .generation import GenerationSettings, StepStream, start_generation
-from .phase_strip import PhaseStrip
+from .phase_strip import PhaseStrip, phase_legend_html
 from .playback import Playback
 from .poses import previous_keypose
 from .properties import PropertiesPanel
@@ -158,7 +158,11 @@ class MainWindow(QMainWindow):
         header.addWidget(self.play_button)
         header.addWidget(self.frame_label)
         header.addStretch(1)
-        header.addWidget(QLabel("shift-drag: frame span  \u00b7  double-click: add keypose  \u00b7  right-click: delete"))
+        header.addWidget(QLabel(phase_legend_html()))
+        header.addSpacing(16)
+        hint = QLabel("shift-drag: span \u00b7 double-click: add key \u00b7 right-click: delete")
+        hint.setStyleSheet("color: #8a857a;")
+        header.addWidget(hint)
         column.addLayout(header)
         column.addWidget(self.timeline)
         column.addWidget(self.phase_strip, 1)
@@ -244,7 +248,7 @@ class MainWindow(QMainWindow):
         doc.toolChanged.connect(lambda tool: self.tool_actions[tool].setChecked(True))
         doc.frameChanged.connect(self._on_frame)
         doc.storyboardChanged.connect(self._on_storyboard)
-        doc.resultChanged.connect(lambda: self.viewport.set_clip(doc.clip))
+        doc.resultChanged.connect(self._show_result)
         self.viewport.frameChanged.connect(doc.set_frame)
         self.canvas.message.connect(lambda text: self.statusBar().showMessage(text, 5000))
         self.properties.objectShapeChanged.connect(lambda shape: setattr(self.canvas, "object_shape", shape))
@@ -271,6 +275,13 @@ class MainWindow(QMainWindow):
     def _on_storyboard(self) -> None:
         self.viewport.set_storyboard(self.doc.storyboard)
         self._on_frame(self.doc.frame)
+
+    def _show_result(self) -> None:
+        """A new clip reframes the 3D camera (set_clip); the playhead stays where the artist left it."""
+        frame = self.doc.frame
+        self.viewport.set_clip(self.doc.clip)
+        self.doc.set_frame(frame)
+        self.viewport.set_frame(frame)
 
     def _set_onion(self, on: bool) -> None:
         self.canvas.show_onion = on
@@ -502,7 +513,6 @@ class MainWindow(QMainWindow):
 
     def _on_generated(self, result: GenerationResult) -> None:
         clips = list(result.clips)
-        self.viewport.set_preview(None)
         self.doc.set_result(clips, clips[0].phase if clips else None)
         self.statusBar().showMessage(
             f"Generated {len(clips)} variation{'s' * (len(clips) != 1)} in {result.wall_time_s:.1f} s "
@@ -517,7 +527,8 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage("Generation cancelled.", 5000)
 
     def _restore_after_generation(self) -> None:
-        self.viewport.set_preview(None)
+        """Cancel or error: show the last finished result again, as if nothing had streamed."""
+        self.viewport.set_preview(self.doc.clip)
         self.phase_strip.show_document_phase()
 
     # ---- closing ---------------------------------------------------------------------------------

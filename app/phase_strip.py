@@ -19,6 +19,12 @@ PLAYHEAD = "#d1495b"
 LANE = 0.16                                          # height of one contact-span lane (plot units)
 
 
+def phase_legend_html() -> str:
+    """Colour swatches naming the phases, for a label beside the strip (rich text)."""
+    return "&nbsp;&nbsp;".join(f'<span style="color:{c}">&#9632;</span> {name}' for c, name in zip(PHASE_COLORS, PHASES)) + (
+        '&nbsp;&nbsp;<span style="color:#777">&#9644;</span> contacts')
+
+
 class PhaseStrip(pg.PlotWidget):
     def __init__(self, document: Document, parent=None):
         super().__init__(parent, background="#fbfaf7")
@@ -38,13 +44,8 @@ class PhaseStrip(pg.PlotWidget):
         self._curves = [pg.PlotCurveItem(pen=None) for _ in range(len(PHASES) + 1)]
         for curve in self._curves:
             item.addItem(curve)
-        legend = pg.LegendItem(offset=(-4, 2), colCount=len(PHASES), labelTextColor="#3a3a3a",
-                               labelTextSize="8pt", brush=pg.mkBrush(251, 250, 247, 200))
-        legend.setParentItem(item.getViewBox())
-        for i, name in enumerate(PHASES):
-            fill = pg.FillBetweenItem(self._curves[i], self._curves[i + 1], brush=pg.mkBrush(PHASE_COLORS[i]))
-            item.addItem(fill)
-            legend.addItem(pg.BarGraphItem(x=[0], height=[0], width=0, brush=PHASE_COLORS[i], pen=None), name)
+        for i in range(len(PHASES)):
+            item.addItem(pg.FillBetweenItem(self._curves[i], self._curves[i + 1], brush=pg.mkBrush(PHASE_COLORS[i])))
         self._spans = pg.BarGraphItem(x0=[], x1=[], y0=[], height=[], brushes=[])
         item.addItem(self._spans)
         self._playhead = pg.InfiniteLine(angle=90, pen=pg.mkPen(PLAYHEAD, width=1.6))

@@ -6,6 +6,6 @@ out vec4 f_color;
 
 void main() {
     float r2 = dot(v_corner, v_corner);
-    float glow = exp(-r2 * 5.0) * 0.9 + smoothstep(0.16, 0.12, r2) * 0.5;
+    float glow = exp(-r2 * 5.0) * 0.65 + smoothstep(0.16, 0.12, r2) * 0.4;
     f_color = vec4(sqrt(v_color.rgb) * glow * v_color.a, 1.0);
 }

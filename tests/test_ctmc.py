@@ -107,7 +107,7 @@ def test_planner_learns_step_schedule_from_informative_features():
     g = torch.Generator().manual_seed(3)
     planner = PhasePlanner(PhasePlannerConfig())
     opt = torch.optim.Adam(planner.parameters(), lr=3e-3)
-    for _ in range(250):
+    for _ in range(200):
         labels, motion, contact = batch_of(8, g)
         z = torch.randn(8, T_LAT, 3, 32, generator=g)   # uninformative latent: features must carry it
         loss, _ = ctmc_loss(planner(z, motion, contact), labels)

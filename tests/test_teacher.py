@@ -69,12 +69,12 @@ def test_loss_decreases_when_overfitting():
     opt = torch.optim.Adam(teacher.parameters(), 3e-3)
     losses = []
     for step in range(60):
-        out = teacher.loss(z0, cond, generator=torch.Generator().manual_seed(step % 4))
+        out = teacher.loss(z0, cond, generator=torch.Generator().manual_seed(0))  # one fixed draw
         opt.zero_grad()
         out["loss"].backward()
         opt.step()
         losses.append(out["loss"].item())
-    assert sum(losses[-8:]) / 8 < 0.7 * sum(losses[:8]) / 8
+    assert losses[-1] < 0.3 * losses[0]
 
 
 def test_ddim_is_deterministic_and_streams():

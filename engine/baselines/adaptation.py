@@ -135,7 +135,15 @@ def keyframe_warp(errors: np.ndarray, key_frames: np.ndarray, num_frames: int, s
     chosen = [int(np.argmin(total[-1]))]
     for pointers in reversed(back):
         chosen.append(int(pointers[chosen[-1]]))
-    return np.interp(np.arange(num_frames), nodes_q, chosen[::-1]).astype(float)
+    chosen = np.array(chosen[::-1], float)
+    # Sub-frame keyframe times from a parabola through each chosen frame's cost and its neighbours.
+    for i, f in enumerate(chosen.astype(int)):
+        if 0 < f < source_frames - 1 and np.all(np.isfinite(costs[i][f - 1:f + 2])):
+            lo, mid, hi = costs[i][f - 1:f + 2]
+            curvature = lo - 2 * mid + hi
+            if curvature > 1e-15:
+                chosen[i] += np.clip(0.5 * (lo - hi) / curvature, -0.5, 0.5)
+    return np.interp(np.arange(num_frames), nodes_q, np.maximum.accumulate(chosen))
 
 
 def sample_frames(clip: MotionClip, times: np.ndarray, fps: float | None = None) -> MotionClip:

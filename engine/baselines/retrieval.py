@@ -64,13 +64,14 @@ class AdaptConfig:
     missing_object_cost: float = 1.0  # m^2 when the storyboard has an object the window lacks
     object_type_cost: float = 0.05    # m^2 when the window's object is of another type
     yaw_steps: int = 720
+    refit_iterations: int = 3         # rigid refits after retiming (path targets re-snapped)
     choose_among: int = 1             # the seed picks among this many nearest windows
     retime: bool = True
     max_stretch: float = 2.0          # retiming never plays a piece faster or slower than this
     blend: bool = True
     falloff_frames: float = 8.0       # how far in time a blended correction reaches
     contact_blend_weight: float = 0.5  # pull of held hands toward their anchors
-    blend_iterations: int = 2
+    blend_iterations: int = 3
 
 
 @dataclass
@@ -286,11 +287,16 @@ def adapt(index: RetrievalIndex, match: Match, storyboard: Storyboard,
         times = np.linspace(0.0, length - 1, n)
     clip = sample_frames(aligned, times, fps=storyboard.fps)
 
-    # Rigid refit now that the timing matches the storyboard.
-    points = _entity_points(clip, index.num_objects).astype(float)[sketch.frame[usable], columns[usable]]
+    # Rigid refit now that the timing matches the storyboard. Path samples are spaced by arc
+    # length, not by time, so they are re-targeted to the nearest point of their path (ICP).
     weights = sketch.weight[usable] / sketch.weight[usable].sum()
-    yaw, offset, _ = fit_ground_rigid(points[None], weights[None], sketch.uv[usable], camera, config.yaw_steps)
-    clip = transform_clip(clip, yaw[0], offset[0])
+    targets = sketch.uv[usable]
+    for _ in range(config.refit_iterations):
+        points = _entity_points(clip, index.num_objects).astype(float)[sketch.frame[usable], columns[usable]]
+        yaw, offset, _ = fit_ground_rigid(points[None], weights[None], targets, camera, config.yaw_steps)
+        clip = transform_clip(clip, yaw[0], offset[0])
+        points = _entity_points(clip, index.num_objects).astype(float)[sketch.frame[usable], columns[usable]]
+        targets = _nearest_on_paths(sketch, usable, camera.project(points))
     offsets = _skeletons(source)
     if config.blend:
         clip = _blend_object(clip, c, storyboard, config)
@@ -322,6 +328,19 @@ def sample_retrieval(index: RetrievalIndex, storyboard: Storyboard, config: Adap
     yield StepEvent(step=0, num_steps=1, t=0.0, latent=np.zeros((1, 0, entities, 0), np.float32),
                     preview=clip, phase=np.asarray(clip.phase), energies={"retrieval_cost": adapted.match.cost})
     return GenerationResult(clips=[clip], wall_time_s=elapsed, first_step_s=elapsed, network_evals=0)
+
+
+def _nearest_on_paths(sketch: _SketchPoints, usable: np.ndarray, projected: np.ndarray) -> np.ndarray:
+    """Targets (P', 2) for the usable points: keyframe points keep theirs, each path sample
+    moves to the nearest point of its path (the polyline of that path's samples in frame order).
+    projected: (P', 2) where the usable points are now."""
+    uv, is_key = sketch.uv[usable].copy(), sketch.keypose[usable]
+    track = np.stack([sketch.kind, sketch.who, sketch.joint], axis=1)[usable]
+    for key in np.unique(track[~is_key], axis=0):
+        on = ~is_key & np.all(track == key, axis=1)
+        path = uv[on][np.argsort(sketch.frame[usable][on], kind="stable")]
+        uv[on] = closest_on_polyline(projected[on], path)
+    return uv
 
 
 def _reorder_people(clip: MotionClip, people: tuple[int, ...]) -> MotionClip:

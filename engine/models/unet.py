@@ -175,15 +175,17 @@ class TemporalUNet(nn.Module):
     def forward(self, z: torch.Tensor, time: torch.Tensor, cond: Conditioning | None = None,
                 entity_pos: torch.Tensor | None = None) -> torch.Tensor:
         """z (B, T_lat, V, d); time (B,) or scalar in [0, 1]; cond: Conditioning or None (no
-        storyboard); entity_pos (B, T_lat, V, 3) metres or None (no distance bias).
+        storyboard, the same as all samples dropped); entity_pos (B, T_lat, V, 3) metres or None (no distance bias).
         Returns (B, n_heads_out, T_lat, V, d)."""
         cfg = self.cfg
         b, t, v, d = z.shape
         time = torch.as_tensor(time, dtype=z.dtype, device=z.device).expand(b)
         emb = self.time_mlp(timestep_embedding(time, cfg.channels[0]))
-        if cond is not None:
-            cond = cond.masked()
-            emb = emb + self.cond_embed(cond.embed)
+        if cond is None:  # "no storyboard" is exactly an all-dropped conditioning
+            cond = Conditioning(residual=z.new_zeros(b, t, v, cfg.cond_dim), temporal_bias=z.new_zeros(b, t, t),
+                                embed=z.new_zeros(b, cfg.cond_embed_dim))
+        cond = cond.masked()
+        emb = emb + self.cond_embed(cond.embed)
         film = self.film(F.silu(emb)).repeat_interleave(v, 0).split(self.film_sizes, 1)
 
         lengths = [t]
@@ -195,10 +197,8 @@ class TemporalUNet(nn.Module):
         if entity_pos is not None:
             dist = torch.cdist(entity_pos, entity_pos)  # (B, T, V, V)
             distance = {i: _pool_distance(dist, lengths[i]) for i in attn_levels}
-        residuals = None
-        if cond is not None:  # (B*V, T, sum C) split per level
-            r = self.cond_residual(cond.residual).transpose(1, 2).reshape(b * v, t, -1)
-            residuals = r.split(list(cfg.channels), -1)
+        r = self.cond_residual(cond.residual).transpose(1, 2).reshape(b * v, t, -1)
+        residuals = r.split(list(cfg.channels), -1)  # per level (B*V, T, C_l)
 
         x = self.input(z.transpose(1, 2).reshape(b * v, t, d))
         x = (x.reshape(b, v, t, -1) + self.entity_embed).reshape(b * v, t, -1)
@@ -206,8 +206,7 @@ class TemporalUNet(nn.Module):
         for i, block in enumerate(self.down_blocks):
             x = block(x, film[k])
             k += 1
-            if residuals is not None:
-                x = x + _pool_time(residuals[i], lengths[i])
+            x = x + _pool_time(residuals[i], lengths[i])
             if str(i) in self.down_attn:
                 x = self.down_attn[str(i)](x, v, tbias[i], distance.get(i))
             skips.append(x)
@@ -229,8 +228,6 @@ class TemporalUNet(nn.Module):
         idx = torch.arange(length, device=like.device)
         far = (idx[:, None] - idx[None]).abs() > self.cfg.window
         mask = torch.zeros(length, length, dtype=like.dtype, device=like.device).masked_fill(far, float("-inf"))
-        if cond is None:
-            return mask.expand(b, length, length)
         bias = cond.temporal_bias
         if bias.shape[-1] != length:
             bias = F.adaptive_avg_pool2d(bias[:, None], (length, length))[:, 0]

@@ -10,6 +10,7 @@ from ..clip import MotionClip
 from ..objects import ObjectSpec
 from ..rotations import matrix_to_6d, rotation_between
 from ..skeleton import JOINT_INDEX, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
+from .bodies import hand_centres
 from ..storyboard import Agent, Keypose, SceneObject, Storyboard, Trajectory
 
 J = JOINT_INDEX
@@ -45,8 +46,9 @@ def carry_clip(frames: int = 40, fps: float = 20.0) -> MotionClip:
         pelvis_y = REST_PELVIS_HEIGHT - 0.02 + bob[n]
         joints[n, 0] = carrying_pose((-0.62, pelvis_y, z[n]), np.pi / 2)
         joints[n, 1] = carrying_pose((0.62, pelvis_y, z[n]), -np.pi / 2)
+    # The box hangs between the four hands.
     pose = np.zeros((frames, 1, 7), np.float32)
-    pose[:, 0, 0], pose[:, 0, 1], pose[:, 0, 2] = 0.0, 0.55 + bob, z
+    pose[:, 0, :3] = hand_centres(joints).mean(axis=(1, 2)) - [0.0, BOX.size[1] / 2, 0.0]
     pose[:, 0, 3] = 1.0
     rot = np.broadcast_to(np.eye(3), (frames, 2, NUM_JOINTS, 3, 3))
     return MotionClip(fps=fps, joints=joints, rot6d=matrix_to_6d(rot), obj_pose=pose,

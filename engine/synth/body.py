@@ -32,7 +32,7 @@ _GROUPS = {"legs": ("knee", "ankle", "foot"), "arms": ("elbow", "wrist"),
 
 @dataclass
 class BodyConfig:
-    max_bend: float = np.deg2rad(80)   # total forward bend (hips + spine) at full crouch
+    max_bend: float = np.deg2rad(95)   # total forward bend (hips + spine) at full crouch
     hip_share: float = 0.4             # part of the bend taken at the hips
     crouch_drop: float = 0.47          # m the pelvis drops at full crouch (scale 1)
     hips_back: float = 0.22            # m the pelvis moves back at full crouch (scale 1)

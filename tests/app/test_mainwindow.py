@@ -96,8 +96,8 @@ def test_generation_streams_every_step_in_order(qtbot, make_window):
     assert spread == sorted(spread, reverse=True)
     assert window.doc.clip is not None and window.doc.phase is not None
     assert not window.runner.running and not window.act_cancel.isEnabled()
-    print(f"GUI-thread max gap during generation: {max(gaps)} ms over {len(gaps)} ticks", gaps)
-    assert max(gaps) < 250   # loose: the CI machine is shared; the target (50 ms) is reported
+    print(f"GUI-thread max gap during generation: {max(gaps)} ms over {len(gaps)} ticks")
+    assert max(gaps) < 150   # the target is 50 ms; margin for a shared, loaded CI machine
 
 
 def test_cancel_stops_within_one_step(qtbot, make_window, dialogs):

@@ -1,0 +1,100 @@
+"""The Viewport widget under QT_QPA_PLATFORM=offscreen: it paints the scene, the mouse moves
+the camera, playback advances frames, and grab_png writes a picture."""
+import os
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
+from PySide6.QtGui import QImage, QWheelEvent  # noqa: E402
+from PySide6.QtWidgets import QApplication  # noqa: E402
+
+from app.viewport import Viewport  # noqa: E402
+from engine.render import RenderUnavailableError, shared_context  # noqa: E402
+from engine.render.example import carry_clip, carry_storyboard  # noqa: E402
+
+
+@pytest.fixture
+def viewport(qtbot):
+    try:
+        shared_context()
+    except RenderUnavailableError as e:
+        pytest.skip(str(e))
+    view = Viewport()
+    qtbot.addWidget(view)
+    view.resize(320, 240)
+    clip = carry_clip(12)
+    view.set_clip(clip)
+    view.set_storyboard(carry_storyboard(clip))
+    view.show()
+    qtbot.waitExposed(view)
+    yield view
+    view.pause()
+
+
+def grab_rgb(view) -> np.ndarray:
+    image = view.grab().toImage().convertToFormat(QImage.Format_RGB888)
+    w, h = image.width(), image.height()
+    return np.frombuffer(image.constBits(), np.uint8).reshape(h, image.bytesPerLine())[:, :3 * w].reshape(h, w, 3)
+
+
+def test_paints_the_people(viewport):
+    pixels = grab_rgb(viewport).astype(int)
+    r, g, b = pixels[..., 0], pixels[..., 1], pixels[..., 2]
+    assert ((r - g > 90) & (g - b > 10)).sum() > 100   # agent 0
+    assert (b - r > 60).sum() > 100                   # agent 1
+
+
+def test_left_drag_orbits_and_wheel_zooms(viewport, qtbot):
+    yaw, distance = viewport.camera.yaw, viewport.camera.distance
+    qtbot.mousePress(viewport, Qt.LeftButton, pos=QPoint(100, 120))
+    qtbot.mouseMove(viewport, QPoint(160, 120))
+    qtbot.mouseRelease(viewport, Qt.LeftButton, pos=QPoint(160, 120))
+    assert viewport.camera.yaw != pytest.approx(yaw)
+    target = viewport.camera.target
+    qtbot.mousePress(viewport, Qt.LeftButton, Qt.ShiftModifier, QPoint(100, 120))
+    qtbot.mouseMove(viewport, QPoint(130, 140))
+    qtbot.mouseRelease(viewport, Qt.LeftButton, Qt.ShiftModifier, QPoint(130, 140))
+    assert not np.allclose(viewport.camera.target, target)
+    pos = QPointF(160, 120)
+    wheel = QWheelEvent(pos, viewport.mapToGlobal(pos), QPoint(), QPoint(0, 240), Qt.NoButton,
+                        Qt.NoModifier, Qt.NoScrollPhase, False)
+    QApplication.sendEvent(viewport, wheel)
+    assert viewport.camera.distance < distance
+    before = grab_rgb(viewport).copy()
+    qtbot.keyClick(viewport, Qt.Key_F)
+    assert not np.array_equal(grab_rgb(viewport), before)
+
+
+def test_playback_advances_and_loops(viewport, qtbot):
+    seen = []
+    viewport.frameChanged.connect(seen.append)
+    viewport.speed = 4.0
+    viewport.play()
+    assert viewport.playing
+    qtbot.waitUntil(lambda: 0 in seen[1:] and len(seen) > viewport.num_frames, timeout=10000)
+    viewport.pause()
+    assert not viewport.playing
+    viewport.set_frame(3)
+    viewport.step()
+    assert viewport.frame == 4
+    viewport.loop = False
+    viewport.set_frame(viewport.num_frames - 1)
+    viewport.step()
+    assert viewport.frame == viewport.num_frames - 1
+
+
+def test_preview_keeps_the_frame_and_camera(viewport):
+    viewport.set_frame(5)
+    viewport.camera.orbit(30, 0)
+    yaw = viewport.camera.yaw
+    viewport.set_preview(carry_clip(12))
+    assert viewport.frame == 5 and viewport.camera.yaw == yaw
+
+
+def test_grab_png_writes_a_picture(viewport, tmp_path):
+    path = tmp_path / "view.png"
+    assert viewport.grab_png(path)
+    image = QImage(str(path))
+    assert (image.width(), image.height()) == (320, 240)
