@@ -29,14 +29,8 @@ from .playback import Playback
 from .poses import previous_keypose
 from .properties import PropertiesPanel
 from .timeline import Timeline, delete_keyframe
+from .viewport import Viewport
 from .worker import GenerationRunner
-
-try:
-    from .viewport import Viewport
-except ModuleNotFoundError as missing:  # the moderngl view is written separately
-    if missing.name != "app.viewport":
-        raise
-    from .viewport_placeholder import ViewportPlaceholder as Viewport
 
 APP_NAME = "Sketch2Colab Studio"
 FILE_FILTER = "Storyboards (*.json);;All files (*)"

@@ -129,7 +129,8 @@ class Timeline(QWidget):
     def mouseReleaseEvent(self, event):
         drag, self._drag = self._drag, None
         if drag and drag[0] == "marker":
-            track, old, new = drag[1]
+            track, old, _ = drag[1]
+            new = self._frame(event.position().x())
             if new != old:
                 self._doc.undo_stack.push(cmd.RetimeKeyframe(self._doc, track.kind, track.owner, old, new))
 

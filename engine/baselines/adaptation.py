@@ -39,19 +39,17 @@ def fit_ground_rigid(points: np.ndarray, weights: np.ndarray, targets: np.ndarra
     a 1-D search on a fine grid refined by a parabola, cheap for thousands of candidates.
     """
     B2 = camera.basis()[:2]                                                  # (2, 3) right, up
-    pivot = np.einsum("wp,wpi->wi", weights, points) * (1.0, 0.0, 1.0)       # (W, 3)
+    w = weights[..., None]                                                   # (W, P, 1)
+    pivot = np.sum(w * points, axis=1) * (1.0, 0.0, 1.0)                     # (W, 3)
     x0 = points - pivot[:, None]
     a = x0[..., :1] * B2[:, 0] + x0[..., 2:] * B2[:, 2]                      # (W, P, 2)
     b = x0[..., 2:] * B2[:, 0] - x0[..., :1] * B2[:, 2]
     g = targets[None] - x0[..., 1:2] * B2[:, 1]
-
-    def centred(v):
-        return v - np.einsum("wp,wpi->wi", weights, v)[:, None]
-
-    a, b, g = centred(a), centred(b), centred(g)
+    mean_a, mean_b, mean_g = (np.sum(w * v, axis=1) for v in (a, b, g))      # (W, 2)
+    a, b, g = a - mean_a[:, None], b - mean_b[:, None], g - mean_g[:, None]
 
     def wdot(u, v):
-        return np.einsum("wp,wpi,wpi->w", weights, u, v)
+        return np.sum(w * u * v, axis=(1, 2))
 
     G, Ga, Gb, Aa, Bb, Ab = wdot(g, g), wdot(g, a), wdot(g, b), wdot(a, a), wdot(b, b), wdot(a, b)
 
@@ -71,11 +69,12 @@ def fit_ground_rigid(points: np.ndarray, weights: np.ndarray, targets: np.ndarra
     yaw = grid[best] + np.clip(shift, -1.0, 1.0) * step
     residual = np.maximum(cost(yaw[:, None])[:, 0], 0.0)
 
-    # The image-plane shift that the centring removed, as a translation on the ground.
+    # The image-plane shift the centring removed is B2 (pivot + T - camera target); T lies on
+    # the ground, so solve the 2x2 system of its x and z.
+    image_shift = mean_g - np.cos(yaw)[:, None] * mean_a - np.sin(yaw)[:, None] * mean_b
+    rhs = image_shift - (pivot - np.asarray(camera.target)) @ B2.T              # (W, 2)
+    ground = np.linalg.lstsq(B2[:, [0, 2]], rhs.T, rcond=None)[0].T              # (W, 2) x, z
     R = yaw_matrix(yaw)
-    moved = np.einsum("wij,wpj->wpi", R, x0)
-    shift_2d = np.einsum("wp,wpi->wi", weights, targets[None] - camera.project(moved + pivot[:, None]))
-    ground = np.linalg.lstsq(B2[:, [0, 2]], shift_2d.T, rcond=None)[0].T    # (W, 2) x, z
     offset = pivot - np.einsum("wij,wj->wi", R, pivot) + np.stack(
         [ground[:, 0], np.zeros(len(ground)), ground[:, 1]], axis=1)
     return yaw, offset, residual
@@ -205,12 +204,8 @@ def smooth_offsets(targets: np.ndarray, weights: np.ndarray, falloff: float = 10
     if n < 3:
         return np.where(weights[..., None] > 0, targets, 0.0)
     # Banded normal matrix of the smoothness terms (5 diagonals), shared by every channel.
-    d1 = np.diff(np.eye(n), axis=0)
-    d2 = np.diff(np.eye(n), 2, axis=0)
-    smooth = shrink * (np.eye(n) + falloff ** 2 * d1.T @ d1 + falloff ** 4 / 4 * d2.T @ d2)
-    bands = np.zeros((5, n))
-    for k in range(-2, 3):
-        bands[2 - k, max(k, 0):n + min(k, 0)] = np.diagonal(smooth, k)
+    bands = shrink * (_gram_bands((1.0,), n) + falloff ** 2 * _gram_bands((-1.0, 1.0), n)
+                      + falloff ** 4 / 4 * _gram_bands((1.0, -2.0, 1.0), n))
     for ch in range(channels):
         w = weights[:, ch]
         if not np.any(w > 0):
@@ -219,3 +214,14 @@ def smooth_offsets(targets: np.ndarray, weights: np.ndarray, falloff: float = 10
         ab[2] += w
         out[:, ch] = solve_banded((2, 2), ab, w[:, None] * targets[:, ch])
     return out
+
+
+def _gram_bands(stencil: tuple[float, ...], n: int) -> np.ndarray:
+    """D^T D in solve_banded's (5, n) layout (2 bands each side), D the (n - len + 1, n)
+    matrix applying `stencil` at every position."""
+    bands = np.zeros((5, n))
+    starts = np.arange(n - len(stencil) + 1)
+    for i, si in enumerate(stencil):
+        for j, sj in enumerate(stencil):
+            bands[2 + i - j, starts + j] += si * sj
+    return bands

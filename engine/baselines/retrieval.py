@@ -36,7 +36,7 @@ from ..clip import MotionClip
 from ..controls import Controls, build_controls
 from ..dataset import resample
 from ..objects import local_to_world
-from ..rotations import matrix_to_6d, sixd_to_matrix
+from ..rotations import matrix_to_6d
 from ..sampling.events import GenerationResult, StepEvent
 from ..skeleton import HANDS, JOINT_INDEX, NUM_JOINTS, fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
@@ -60,6 +60,7 @@ class AdaptConfig:
     keypose_weight: float = 1.0       # shares of the retrieval cost per kind of sketch point
     trajectory_weight: float = 0.5
     object_weight: float = 0.5
+    path_stride: int = 3              # frames between the path samples compared
     contact_weight: float = 0.05      # m^2 per unit of contact-timing mismatch (share of frames)
     missing_object_cost: float = 1.0  # m^2 when the storyboard has an object the window lacks
     object_type_cost: float = 0.05    # m^2 when the window's object is of another type
@@ -79,7 +80,7 @@ class Match:
     window: int                # index into RetrievalIndex.windows
     people: tuple[int, ...]    # window person shown as agent h
     yaw: float                 # radians about +Y ...
-    offset: np.ndarray         # ... and (3,) ground translation: x' = R x + offset
+    offset: tuple[float, float, float]  # ... and ground translation: x' = R x + offset
     cost: float
 
 
@@ -188,12 +189,14 @@ class _SketchPoints:
 
 
 def _sketch_points(c: Controls, config: AdaptConfig) -> _SketchPoints:
+    # Paths are sampled every `path_stride` frames: dense samples cost time and add little.
+    sampled = (np.arange(len(c.kp_mask)) % config.path_stride == 0)
     groups = []  # (frame, kind, who, joint, uv, share, keypose)
     for mask, uv, weight, is_key in ((c.kp_mask, c.kp2d, config.keypose_weight, True),
-                                     (c.tr_mask, c.tr2d, config.trajectory_weight, False)):
+                                     (c.tr_mask & sampled[:, None, None], c.tr2d, config.trajectory_weight, False)):
         f, h, j = np.nonzero(mask)
         groups.append((f, np.full(len(f), JOINT), h, j, uv[f, h, j], weight, is_key))
-    for mask, uv, kind, is_key in ((c.objpath_mask, c.objpath2d, OBJECT_ROOT, False),
+    for mask, uv, kind, is_key in ((c.objpath_mask & sampled[:, None], c.objpath2d, OBJECT_ROOT, False),
                                    (c.obj_mask, c.obj2d[..., :2], OBJECT_CENTRE, True)):
         f, o = np.nonzero(mask)
         groups.append((f, np.full(len(f), kind), o, np.zeros(len(f), int), uv[f, o], config.object_weight, is_key))
@@ -253,12 +256,12 @@ def retrieve(index: RetrievalIndex, storyboard: Storyboard, config: AdaptConfig 
             labels = index.contact[frame_of[rows]][:, :, list(people)]                 # (w, N, H, 2)
             mismatch = np.mean(labels != c.contact[None], axis=(1, 2, 3))
             costs.append(residual + config.contact_weight * mismatch + penalty[rows])
-            results += [(w, people, yaw[i], offset[i]) for i, w in enumerate(range(lo, min(lo + chunk, len(windows))))]
+            results += [(lo + i, people, yaw[i], offset[i]) for i in range(len(yaw))]
     cost = np.concatenate(costs)
     order = np.argsort(cost, kind="stable")[:max(config.choose_among, 1)]
     pick = order[np.random.default_rng(seed).integers(len(order))] if len(order) > 1 else order[0]
     w, people, yaw, offset = results[pick]
-    return Match(int(w), tuple(int(p) for p in people), float(yaw), np.asarray(offset, float), float(cost[pick]))
+    return Match(int(w), tuple(int(p) for p in people), float(yaw), tuple(float(v) for v in offset), float(cost[pick]))
 
 
 # ---- adaptation ---------------------------------------------------------------------------------
@@ -269,7 +272,7 @@ def adapt(index: RetrievalIndex, match: Match, storyboard: Storyboard,
     c = build_controls(storyboard)
     sketch = _sketch_points(c, config)
     source = _reorder_people(index.window_clip(match.window), match.people)
-    aligned = transform_clip(source, match.yaw, match.offset)
+    aligned = transform_clip(source, match.yaw, np.asarray(match.offset))
     n, length = storyboard.length, source.num_frames
     camera = storyboard.camera
     columns = sketch.entities(tuple(range(index.num_humans)), index.num_humans, index.num_objects)
@@ -412,7 +415,8 @@ def _body_targets(clip: MotionClip, c: Controls, storyboard: Storyboard,
     n, h = joints.shape[:2]
     target, weight = np.zeros((n, h, NUM_JOINTS, 3)), np.zeros((n, h, NUM_JOINTS))
     for stroke in storyboard.trajectories:
-        a, j, span = storyboard.agent_index(stroke.agent), JOINT_INDEX[stroke.joint], slice(stroke.start, stroke.end + 1)
+        a, j = storyboard.agent_index(stroke.agent), JOINT_INDEX[stroke.joint]
+        span = slice(stroke.start, stroke.end + 1)
         uv = closest_on_polyline(storyboard.camera.project(joints[span, a, j]), stroke.points)
         target[span, a, j], weight[span, a, j] = _in_plane(storyboard, uv, joints[span, a, j]), 1.0
     key = c.kp_mask

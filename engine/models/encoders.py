@@ -53,7 +53,7 @@ class EncoderConfig:
     keyframe_sigma: float = 0.03   # width of the keyframe time gate, in normalized time
     phase_dim: int = 16            # embedding of the along-path phase for the temporal bias
     temperature: float = 0.1       # InfoNCE temperature on cosine similarities
-    lambda_nce: float = 0.1        # lambda_c in L_align and lambda_NCE in L_lat
+    lambda_nce: float = 1.0        # lambda_c in L_align and lambda_NCE in L_lat (smaller lets the L2 term collapse all embeddings together first)
     text: bool = False             # text cross-attention: not shipped, must stay False
 
 
@@ -109,8 +109,8 @@ class MaskedSetEncoder(nn.Module):
 
     def __init__(self, in_dim: int, hidden: int, d_e: int):
         super().__init__()
-        self.token = _mlp(in_dim, hidden, hidden)
-        self.out = _mlp(2 * hidden, hidden, d_e)
+        self.token = nn.Sequential(nn.Linear(in_dim, hidden), nn.LayerNorm(hidden), nn.SiLU(), _mlp(hidden, hidden, hidden))
+        self.out = nn.Sequential(nn.LayerNorm(2 * hidden), _mlp(2 * hidden, hidden, d_e))
         self.empty = nn.Parameter(torch.randn(d_e))
 
     def forward(self, tokens: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:

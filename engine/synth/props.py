@@ -23,16 +23,19 @@ def random_object(rng: np.random.Generator, types: tuple[str, ...] = OBJECT_TYPE
     return ObjectSpec(kind, tuple(size), grip_anchors(kind, tuple(size)))
 
 
+PALM = 0.02  # m from the surface to the wrist joint of a hand flat on it
+
+
 def grip_anchors(kind: str, size: tuple[float, float, float]) -> np.ndarray:
-    """(4, 3) local grip points on the object's surface."""
+    """(4, 3) local grip points: where the wrist joint is when the palm is on the surface."""
     w, h, d = size
-    if kind == "table":      # under the top's edge at the two short ends
-        a, y, b = w / 2, h - TABLE_TOP, 0.3 * d
+    if kind == "table":      # at the top's edge on the two short ends, palm under it
+        a, y, b = w / 2 + PALM, h - TABLE_TOP - PALM, 0.3 * d
     elif kind == "canister":  # on the wall, 35 degrees either side of the x axis
-        r = min(w, d) / 2
+        r = min(w, d) / 2 + PALM
         a, y, b = r * np.cos(np.radians(35)), 0.7 * h, r * np.sin(np.radians(35))
     else:                    # box: high on the end faces, where a lifting hand goes
-        a, y, b = w / 2, 0.75 * h, 0.28 * d
+        a, y, b = w / 2 + PALM, 0.75 * h, 0.28 * d
     return np.column_stack([GRIP_SIGNS[:, 0] * a, np.full(4, y), GRIP_SIGNS[:, 1] * b])
 
 

@@ -36,6 +36,9 @@ class ScenarioConfig:
     walk_speed: tuple[float, float] = (0.7, 1.1)      # m/s, average over a walk to a spot
     carry_speed: tuple[float, float] = (0.4, 0.75)    # m/s, average while carrying
     standoff: tuple[float, float] = (0.28, 0.33)      # m from grip to ground point (scale 1)
+    table_standoff: float = 0.06                      # m more for tables: feet stay clear of the legs
+    min_gap: float = 1.0                              # m between two carriers' ground points (scale 1)
+    knee_clearance: float = 0.6                       # m a carried object's bottom stays above (scale 1)
     carry_drop: tuple[float, float] = (0.36, 0.46)    # m from standing shoulder down to the grips
     max_turn: float = np.radians(75)                  # heading change over a carry path
     reach_time: float = 0.45                          # s a hand takes to reach a grip
@@ -190,7 +193,7 @@ def _two_person_carry(rng, times, cfg, scenario: str) -> ScenePlan:
     if let_go:
         parts[-1] = ("carry", 0.0, 0.8)
         parts += [("let_go", 0.3, 0.0), ("clear", 0.5, 0.0), ("finish", 0.0, 0.8)]
-    parts += [("lower", 0.6, 0.0), ("release", 0.3, 0.0), ("withdraw", 0.0, 0.5 if let_go else 0.8)]
+    parts += [("lower", 0.6, 0.0), ("release", 0.45, 0.0), ("withdraw", 0.0, 0.5 if let_go else 0.8)]
     span = _timeline(rng, seconds, parts)
 
     # The object's path: leave along its own x axis (so the people at its ends lead and trail).
@@ -232,7 +235,8 @@ def _two_person_carry(rng, times, cfg, scenario: str) -> ScenePlan:
     grasp = span["reach"][1]
     release = span["release"][0] + 0.1
     for sx, body in zip((-1.0, 1.0), bodies):
-        standoff = rng.uniform(*cfg.standoff) * body.scale
+        standoff = (rng.uniform(*cfg.standoff) + cfg.table_standoff * (spec.type == "table")) * body.scale
+        standoff = max(standoff, cfg.min_gap * body.scale / 2 - grip_x)  # small objects: keep feet apart
         ground = pos + x_axis * sx * (grip_x + standoff)
         facing = heading_of(-sx * x_axis)
         arrive = span["approach"][1] - rng.uniform(0.0, 0.25)
@@ -273,7 +277,8 @@ def _handoff(rng, times, cfg, scenario: str) -> ScenePlan:
     f = forward_of(np.array(rng.uniform(-np.pi, np.pi)))       # from A towards B
     depth = abs(spec.anchors[0, 2])
     carry_y = min(b.shoulder_height() - rng.uniform(*cfg.carry_drop) * b.scale for b in (body_a, body_b))
-    lift = carry_y - spec.anchors[0, 1]
+    # Held out in front while walking, so lifted clear of the knees.
+    lift = max(carry_y - spec.anchors[0, 1], cfg.knee_clearance * max(body_a.scale, body_b.scale))
     reach_a = depth + rng.uniform(*cfg.standoff) * body_a.scale
     reach_b = depth + rng.uniform(*cfg.standoff) * body_b.scale
 

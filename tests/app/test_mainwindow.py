@@ -1,8 +1,5 @@
 """The whole window: files, recovery, shortcuts and streamed generation with a fake sampler."""
-import time
-
 import numpy as np
-import pytest
 import torch  # noqa: F401  as main() does: loaded before the window, so no generation pays for it
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer
 
