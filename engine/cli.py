@@ -70,6 +70,15 @@ def cmd_synth(args) -> int:
     return 0
 
 
+def cmd_train(args) -> int:
+    from .training.command import TrainError, train_command
+    try:
+        train_command(args.stage, args.config, args.data, args.real, args.steps, args.resume, args.runs)
+    except TrainError as e:
+        raise UserError(str(e)) from None
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="sketch2colab", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -102,6 +111,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fps", type=float, default=20.0)
     s.add_argument("--seconds", type=float, default=6.0)
     s.set_defaults(func=cmd_synth)
+
+    s = sub.add_parser("train", help="train a model stage (or all) on clip folders; torchrun for several GPUs")
+    s.add_argument("stage", choices=["vqvae", "encoders", "teacher", "student1", "student2", "potential",
+                                     "ctmc", "surrogate", "all"])
+    s.add_argument("--config", choices=["default", "large"], default="default",
+                   help="default: 2-core CPU sizes; large: GPU sizes and paper settings")
+    s.add_argument("--data", nargs="+", metavar="DIR", help="folders of synthesized clip NPZs")
+    s.add_argument("--real", nargs="+", metavar="DIR", help="folders of imported capture clip NPZs")
+    s.add_argument("--steps", type=int, help="steps per stage (overrides the config)")
+    s.add_argument("--resume", action="store_true", help="continue from runs/STAGE/checkpoint.pt")
+    s.add_argument("--runs", default="runs", help="output root (default runs/)")
+    s.set_defaults(func=cmd_train)
     return p
 
 

@@ -149,7 +149,7 @@ class StoryboardWindows(Dataset):
         item = _motion_arrays(window)
         item["valid"] = valid
         item["noise"] = np.float32(noise)
-        item.update(_fixed_controls(controls))
+        item.update(fixed_controls(controls))
         return {k: torch.from_numpy(np.asarray(v)) for k, v in item.items()}
 
 
@@ -253,12 +253,19 @@ def _motion_arrays(clip: MotionClip) -> dict[str, np.ndarray]:
     }
 
 
-def _fixed_controls(controls: Controls) -> dict[str, np.ndarray]:
-    """Controls with the object axis padded to one slot; masks as 0/1 float32."""
+def fixed_controls(controls: Controls) -> dict[str, np.ndarray]:
+    """Controls padded to the model's slots (2 humans, 1 object); masks as 0/1 float32.
+    Padded slots are empty (all masks 0, contact_anchor -1)."""
     out = {}
     for f in fields(Controls):
         v = getattr(controls, f.name)
         if f.name.startswith("obj") and v.shape[1] == 0:
             v = np.zeros((v.shape[0], 1) + v.shape[2:], v.dtype)
+        if f.name in _PER_HUMAN and v.shape[1] < NUM_HUMANS:
+            pad = np.full((v.shape[0], NUM_HUMANS - v.shape[1]) + v.shape[2:], -1 if f.name == "contact_anchor" else 0, v.dtype)
+            v = np.concatenate([v, pad], 1)
         out[f.name] = v.astype(np.int64 if f.name == "contact_anchor" else np.float32)
     return out
+
+
+_PER_HUMAN = ("kp2d", "kp_mask", "tr2d", "tr_mask", "contact", "contact_anchor")

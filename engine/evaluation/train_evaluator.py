@@ -1,7 +1,7 @@
 """Train the motion evaluator contrastively on the training split and write it with its model card.
 
     python -m engine.evaluation.train_evaluator --synth DATA/synth --real DATA/real \
-        --out resources/evaluator.pt --steps 3000 --seed 0 [--config large] [--device cuda]
+        --out resources/evaluator.pt --steps 2500 --seed 0 [--config large] [--device cuda]
 
 Files are split by engine.dataset.split_files (synthesized clips by seed; real takes of the
 held-out salsa pair are test): training reads the train split, the figures in the card come
@@ -41,7 +41,7 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 @dataclass
 class TrainConfig:
     model: EvaluatorConfig = field(default_factory=EvaluatorConfig)
-    steps: int = 3000
+    steps: int = 2500
     batch: int = 64
     lr: float = 1e-3
     weight_decay: float = 1e-4
@@ -165,7 +165,7 @@ def fit(evaluator: MotionEvaluator, train: FeatureCache, config: TrainConfig,
         loss.backward()
         optimiser.step()
         schedule.step()
-        losses.append(float(loss))
+        losses.append(loss.item())
         if config.log_every and ((step + 1) % config.log_every == 0 or step + 1 == config.steps):
             log(f"step {step + 1}/{config.steps}  InfoNCE {np.mean(losses[-config.log_every:]):.3f}")
     evaluator.eval()

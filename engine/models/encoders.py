@@ -103,13 +103,15 @@ def condition_presence(controls: dict[str, torch.Tensor]) -> dict[str, torch.Ten
 class MaskedSetEncoder(nn.Module):
     """A set of tokens (B, L, F) with a mask (B, L) -> unit embedding (B, d_e).
 
-    Per-token MLP, masked mean and max pooling, MLP. An empty set maps to a learned unit vector
-    (the "no constraint of this type" embedding).
+    Per-token MLP, masked mean and max pooling, LayerNorm, MLP. An empty set maps to a learned
+    unit vector (the "no constraint of this type" embedding). The LayerNorm matters: constant
+    inputs (masks, time, camera) otherwise swamp the per-sample signal and every embedding
+    starts out identical, which the L2 term of L_align rewards.
     """
 
     def __init__(self, in_dim: int, hidden: int, d_e: int):
         super().__init__()
-        self.token = nn.Sequential(nn.Linear(in_dim, hidden), nn.LayerNorm(hidden), nn.SiLU(), _mlp(hidden, hidden, hidden))
+        self.token = _mlp(in_dim, hidden, hidden)
         self.out = nn.Sequential(nn.LayerNorm(2 * hidden), _mlp(2 * hidden, hidden, d_e))
         self.empty = nn.Parameter(torch.randn(d_e))
 
@@ -220,25 +222,23 @@ class JointLifter(nn.Module):
 
     def forward(self, uv: torch.Tensor, mask: torch.Tensor, camera: torch.Tensor,
                 target: torch.Tensor) -> torch.Tensor:
-        """uv (B, M, 22, 2), mask (B, M, 22) bool, camera (B, 3, 3), target (B, 3) -> (B, M, 22, 3)
-        (zero where mask is False). M groups (frame x human) share pose context."""
-        b, m = uv.shape[:2]
-        right, up, back = camera[:, 0], camera[:, 1], camera[:, 2]          # (B, 3)
-        back_y = back[:, 1, None, None]
-        origin_y = (target[:, 1, None, None] + uv[..., 0] * right[:, 1, None, None]
-                    + uv[..., 1] * up[:, 1, None, None])                      # (B, M, 22)
+        """One group of joints (a pose, or the trajectory points of one frame) per row:
+        uv (G, 22, 2), mask (G, 22) bool, camera (G, 3, 3), target (G, 3) -> (G, 22, 3), zero
+        where mask is False."""
+        g = uv.shape[0]
+        right, up, back = camera[:, None, 0], camera[:, None, 1], camera[:, None, 2]   # (G, 1, 3)
+        back_y = back[..., 1]
+        origin_y = target[:, None, 1] + uv[..., 0] * right[..., 1] + uv[..., 1] * up[..., 1]  # (G, 22)
         # Regularized solve of origin_y - depth * back_y = rest height: exact for a tilted
         # camera, fading to the target's depth for a level one (where height says nothing).
         prior = (origin_y - self.rest_height) * back_y / (back_y ** 2 + self.LEVEL_CAMERA ** 2)
         mf = mask[..., None].to(uv.dtype)
-        centre = (uv * mf).sum(2, keepdim=True) / mf.sum(2, keepdim=True).clamp_min(1.0)
-        point = torch.cat([uv, uv - centre, prior[..., None] * 0.1, mf,
-                           self.joint_embed.expand(b, m, -1, -1),
-                           camera.reshape(b, 1, 1, 9).expand(b, m, NUM_JOINTS, 9)], -1) * mf
-        ctx = (self.context(point) * mf).sum(2, keepdim=True) / mf.sum(2, keepdim=True).clamp_min(1.0)
-        depth = prior + self.head(torch.cat([point, ctx.expand(-1, -1, NUM_JOINTS, -1)], -1))[..., 0]
-        p = (target[:, None, None] + uv[..., :1] * right[:, None, None] + uv[..., 1:] * up[:, None, None]
-             - depth[..., None] * back[:, None, None])
+        centre = (uv * mf).sum(1, keepdim=True) / mf.sum(1, keepdim=True).clamp_min(1.0)
+        point = torch.cat([uv, uv - centre, prior[..., None] * 0.1, mf, self.joint_embed.expand(g, -1, -1),
+                           camera.reshape(g, 1, 9).expand(g, NUM_JOINTS, 9)], -1) * mf
+        ctx = (self.context(point) * mf).sum(1, keepdim=True) / mf.sum(1, keepdim=True).clamp_min(1.0)
+        depth = prior + self.head(torch.cat([point, ctx.expand(-1, NUM_JOINTS, -1)], -1))[..., 0]
+        p = target[:, None] + uv[..., :1] * right + uv[..., 1:] * up - depth[..., None] * back
         return p * mf
 
 
@@ -431,10 +431,12 @@ class SketchConditioner(nn.Module):
         cam, target = controls["camera"], controls["cam_target"]
 
         def run(lifter: JointLifter, uv: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-            b, n, h = mask.shape[:3]
-            out = lifter(uv.reshape(b, n * h, NUM_JOINTS, 2), _bool(mask).reshape(b, n * h, NUM_JOINTS),
-                         cam, target)
-            return out.reshape(b, n, h, NUM_JOINTS, 3)
+            # Lift only the (sample, frame, human) groups that carry a constraint: a few percent.
+            mask = _bool(mask)
+            out = uv.new_zeros(mask.shape + (3,))
+            b, n, h = torch.nonzero(mask.any(-1), as_tuple=True)
+            out[b, n, h] = lifter(uv[b, n, h], mask[b, n, h], cam[b], target[b])
+            return out
 
         return LiftedControls(run(self.lift_kf, controls["kp2d"], controls["kp_mask"]),
                               run(self.lift_tr, controls["tr2d"], controls["tr_mask"]))

@@ -197,15 +197,3 @@ def combine_losses(terms: dict[str, torch.Tensor], weights: LossWeights = LossWe
             total = total + getattr(weights, name) * value
     return total
 
-
-def lyapunov_loss(grad_potential: torch.Tensor, v: torch.Tensor, kappa: float = 0.01) -> torch.Tensor:
-    """L_Lyap = E[max(0, grad V . v + kappa ||grad V||^2)^2] (paper eq. lyap_loss).
-
-    grad_potential (B, T, V, d) = grad_z of the total potential at z (detached or not, the
-    caller decides what trains); v (B, T, V, d) the student's velocity field in the direction
-    it moves the state. Our student integrates from t = 1 to 0, so the state moves along -v:
-    descent of the potential means grad V . (-v) <= -kappa ||grad V||^2, i.e. the hinge is on
-    -grad V . v + kappa ||grad V||^2."""
-    g = grad_potential.flatten(1)
-    hinge = F.relu(-(g * v.flatten(1)).sum(1) + kappa * g.pow(2).sum(1))
-    return hinge.pow(2).mean()

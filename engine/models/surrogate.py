@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import torch
+import torch.autograd.forward_ad as fwAD
 import torch.nn.functional as F
 from torch import nn
 
@@ -184,8 +185,9 @@ def mean_jacobian_blocks(decoder: Decoder, latents: torch.Tensor, bandwidth: int
             tangent = torch.zeros(channels, t, channels)
             tangent[:, steps] = torch.eye(channels)[:, None]
             z_rep = z[None].expand(channels, t, v, d).contiguous()
-            _, out = torch.func.jvp(lambda x: _decode_flat(decoder, x), (z_rep,),
-                                    (tangent.reshape(channels, t, v, d),))
+            with fwAD.dual_level():
+                dual = fwAD.make_dual(z_rep, tangent.reshape(channels, t, v, d))
+                out = fwAD.unpack_dual(_decode_flat(decoder, dual)).tangent
             groups = out.reshape(channels, t, -1)                           # (V*d, T_lat, s*D)
             if blocks is None:
                 blocks = torch.zeros(2 * w + 1, groups.shape[-1], channels)

@@ -36,6 +36,7 @@ class BodyConfig:
     hip_share: float = 0.4             # part of the bend taken at the hips
     crouch_drop: float = 0.47          # m the pelvis drops at full crouch (scale 1)
     hips_back: float = 0.22            # m the pelvis moves back at full crouch (scale 1)
+    squat_onset: float = 1.6           # exponent: how late in the crouch the pelvis drops
     reach: float = 0.92                # share of arm length a comfortable reach uses
     crouch_lead: float = 0.6           # s over which people bend before/after a hold
     knee_slack: float = 0.975          # legs never straighter than this share of their length
@@ -120,9 +121,11 @@ def _torso_rotations(yaw: np.ndarray, bend: np.ndarray, config: BodyConfig) -> n
 
 
 def _torso_placement(body: Body, crouch: np.ndarray, config: BodyConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Pelvis height (N,) and backward shift (N,) for crouch amounts in [0, 1]."""
-    height = body.standing_height(config) - config.crouch_drop * body.scale * crouch
-    return height, -config.hips_back * body.scale * crouch
+    """Pelvis height (N,) and backward shift (N,) for crouch amounts in [0, 1]. A slight crouch is
+    mostly a lean; the knees bend in earnest only for low reaches."""
+    squat = crouch ** config.squat_onset
+    height = body.standing_height(config) - config.crouch_drop * body.scale * squat
+    return height, -config.hips_back * body.scale * squat
 
 
 def crouch_needed(body: Body, ground: np.ndarray, yaw: np.ndarray, target: np.ndarray,

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .reach import wrap_angle, yaw_matrix
+from .reach import yaw_matrix
 from .trajectory import blend_yaw, smootherstep
 
 FOOT_HEIGHT = 0.02  # height of the foot joint above the ground on a flat, planted foot (m)
@@ -86,7 +86,8 @@ def plan_footwork(ground: np.ndarray, yaw: np.ndarray, stance: np.ndarray, scale
             tau = np.clip((u_rel - w0) / max(w1 - w0, 1e-9), 0.0, 1.0)
             swing = np.clip((tau - 0.5 * (1 - config.swing_share)) / config.swing_share, 0.0, 1.0)
             frames = slice(a, b + 1)
-            ease = smootherstep(swing)[:, None]
+            # Travel only while well off the floor, so no frame rate sees a low, moving foot.
+            ease = smootherstep((swing - 0.15) / 0.7)[:, None]
             pos = src + (dst - src) * ease
             pos[:, 1] = FOOT_HEIGHT + config.lift * scale * np.sqrt(np.sin(np.pi * swing))
             feet[frames, foot] = np.where((u_rel >= w0)[:, None], pos, feet[frames, foot])

@@ -46,6 +46,7 @@ class ScenarioConfig:
     window_before: float = 0.15                       # contact window before a grasp (s)
     window_after: float = 0.2                         # contact window after a grasp (s)
     adjust_height: tuple[float, float] = (0.15, 0.3)  # m raised or lowered in lift_adjust
+    carried_floor_gap: float = 0.1                    # m a lowered, still carried object keeps
     shake_amplitude: float = 0.03                     # m
     shake_rate: float = 2.5                           # Hz
 
@@ -223,10 +224,12 @@ def _two_person_carry(rng, times, cfg, scenario: str) -> ScenePlan:
     lift = max(carry_y - grip_y, 0.05)
     height = lift * (smoothstep(progress(times, *span["lift"])) - smoothstep(progress(times, *span["lower"])))
     if scenario == "lift_adjust":
-        amount = rng.uniform(*cfg.adjust_height) * rng.choice([-1.0, 1.0])
-        bumps = int(rng.integers(1, 3))
-        height += amount * np.sin(np.pi * bumps * progress(times, *carry_t))
-        height = np.maximum(height, 0.0)
+        amount = rng.uniform(*cfg.adjust_height)
+        p = progress(times, *carry_t)
+        profile = rng.choice([-1.0, 1.0]) * np.sin(np.pi * rng.integers(1, 3) * p)
+        if lift + amount * profile.min() < cfg.carried_floor_gap:
+            profile = np.sin(np.pi * p)  # too low to lower it on the way: only raise it
+        height += amount * profile
     pose = pose_array(pos + height[:, None] * [0, 1, 0], obj_yaw)
     anchors = world_anchors(spec, pose)
     x_axis = _x_axis(obj_yaw)
@@ -247,7 +250,7 @@ def _two_person_carry(rng, times, cfg, scenario: str) -> ScenePlan:
             # The leader lets go and walks off ahead and to the side, clear of the object's way on.
             off = span["let_go"][0] + 0.1
             away = _rotate(stop_dir, side * np.pi / 2) + 0.5 * stop_dir
-            _withdraw(rng, track, off + 0.15, off + 1.3, away / np.linalg.norm(away),
+            _withdraw(rng, track, off + 0.15, off + 1.6, away / np.linalg.norm(away),
                       rng.uniform(1.2, 1.5) * body.scale, False, spread=0.15)
         else:
             off = release
@@ -320,8 +323,8 @@ def _handshake(rng, times, cfg, scenario: str) -> ScenePlan:
     f = forward_of(np.array(rng.uniform(-np.pi, np.pi)))      # from A towards B
     left_a = np.array([f[2], 0.0, -f[0]])
     scale = np.mean([b.scale for b in bodies])
-    gap = rng.uniform(0.75, 0.85) * scale
-    grip = centre + [0, rng.uniform(0.9, 1.0) * scale, 0]
+    gap = rng.uniform(0.55, 0.65) * scale
+    grip = centre + [0, rng.uniform(1.0, 1.05) * scale, 0]
     # Both stand a little to their own left so that the right hands meet on the midline.
     goals = [centre - f * gap / 2 + left_a * 0.08 * scale, centre + f * gap / 2 - left_a * 0.08 * scale]
     on, off = span["reach"][1], span["release"][0]

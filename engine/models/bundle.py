@@ -1,0 +1,173 @@
+"""The model bundle: every trained part the product needs, saved and loaded as one file.
+
+File: a torch.save'd dict (weights_only-safe) with
+  format      "sketch2colab-bundle"
+  version     BUNDLE_VERSION
+  config      ModelConfig as nested plain dicts
+  metadata    free-form dict (stages trained, steps, data, date, metrics)
+  weights     {part name: half-precision state dict}; parts absent from the file stay untrained
+`load_default()` loads resources/models/default.pt, or when none is shipped returns a freshly
+initialised small bundle flagged trained=False, so the app can stream (noise-like) motion
+until trained weights land.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from .ctmc import PhasePlanner, PhasePlannerConfig
+from .encoders import EncoderConfig, LatentProjectionHead, SketchConditioner
+from .potential import LatentPotential, PotentialConfig
+from .student import RectifiedFlowStudent
+from .surrogate import JacobianSurrogate, SurrogateConfig
+from .teacher import DiffusionTeacher, VPSchedule
+from .unet import TemporalUNet, UNetConfig
+from .vqvae import EntityVQVAE, VQVAEConfig
+
+BUNDLE_FORMAT = "sketch2colab-bundle"
+BUNDLE_VERSION = 1
+DEFAULT_PATH = Path(__file__).resolve().parents[2] / "resources" / "models" / "default.pt"
+PARTS = ("vqvae", "conditioner", "latent_head", "teacher", "student", "planner", "potential", "surrogate")
+
+
+class BundleError(ValueError):
+    """A bundle file that is missing, corrupt, or does not fit this program's models."""
+
+
+@dataclass
+class ModelConfig:
+    vqvae: VQVAEConfig = field(default_factory=VQVAEConfig)
+    teacher_unet: UNetConfig = field(default_factory=UNetConfig.default)
+    student_unet: UNetConfig = field(default_factory=lambda: UNetConfig.default(n_heads_out=3))
+    encoder: EncoderConfig = field(default_factory=EncoderConfig)
+    planner: PhasePlannerConfig = field(default_factory=PhasePlannerConfig)
+    potential: PotentialConfig = field(default_factory=PotentialConfig)
+    surrogate: SurrogateConfig = field(default_factory=SurrogateConfig)
+    schedule: VPSchedule = field(default_factory=VPSchedule)
+
+    @classmethod
+    def default(cls) -> "ModelConfig":
+        """Sized for the 2-core CPU product target."""
+        return cls()
+
+    @classmethod
+    def large(cls) -> "ModelConfig":
+        """Wider networks for GPU training (the latent interface stays the same)."""
+        return cls(vqvae=VQVAEConfig(channels=256, codebook_size=1024),
+                   teacher_unet=UNetConfig.large(), student_unet=UNetConfig.large(n_heads_out=3),
+                   encoder=EncoderConfig(hidden=256))
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "ModelConfig":
+        out = {}
+        for f in dataclasses.fields(cls):
+            sub = f.default_factory()
+            values = {k: tuple(v) if isinstance(getattr(sub, k, None), tuple) else v
+                      for k, v in data.get(f.name, {}).items()}
+            out[f.name] = dataclasses.replace(sub, **values)
+        return cls(**out)
+
+
+def build_parts(cfg: ModelConfig) -> dict[str, nn.Module]:
+    """Freshly initialised modules for every part, keyed by PARTS names."""
+    return {
+        "vqvae": EntityVQVAE(cfg.vqvae),
+        "conditioner": SketchConditioner(cfg.encoder),
+        "latent_head": LatentProjectionHead(cfg.encoder),
+        "teacher": DiffusionTeacher(TemporalUNet(cfg.teacher_unet), cfg.schedule),
+        "student": RectifiedFlowStudent(TemporalUNet(cfg.student_unet)),
+        "planner": PhasePlanner(cfg.planner),
+        "potential": LatentPotential(cfg.potential),
+        "surrogate": JacobianSurrogate(cfg.surrogate),
+    }
+
+
+@dataclass
+class ModelBundle:
+    config: ModelConfig
+    parts: dict[str, nn.Module]
+    trained: bool = False                     # False: untrained weights, output is not motion
+    metadata: dict = field(default_factory=dict)
+
+    def __getattr__(self, name: str):
+        parts = self.__dict__.get("parts", {})
+        if name in parts:
+            return parts[name]
+        raise AttributeError(name)
+
+    def eval(self) -> "ModelBundle":
+        for m in self.parts.values():
+            m.eval().requires_grad_(False)
+        return self
+
+    def save(self, path: str | Path) -> None:
+        """Half-precision weights (buffers that count things stay as they are), atomically."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        weights = {name: {k: v.half() if v.is_floating_point() else v for k, v in m.state_dict().items()}
+                   for name, m in self.parts.items()}
+        meta = {**self.metadata, "trained": self.trained, "saved_at": time.strftime("%Y-%m-%d %H:%M:%S")}
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        torch.save({"format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "config": self.config.to_dict(),
+                    "metadata": meta, "weights": weights}, tmp)
+        tmp.replace(path)
+
+
+def load_bundle(path: str | Path) -> ModelBundle:
+    """Read a bundle file; any problem raises BundleError with a one-line message."""
+    path = Path(path)
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise BundleError(f"{path}: no such model bundle") from None
+    except Exception as e:  # zip, pickle and torch errors all mean "not a bundle we can read"
+        raise BundleError(f"{path}: not a readable model bundle ({type(e).__name__}: {str(e).splitlines()[0][:120]})") from None
+    if not isinstance(data, dict) or data.get("format") != BUNDLE_FORMAT:
+        raise BundleError(f"{path}: not a Sketch2Colab model bundle")
+    if int(data.get("version", -1)) > BUNDLE_VERSION:
+        raise BundleError(f"{path}: bundle version {data.get('version')} is newer than this program ({BUNDLE_VERSION})")
+    try:
+        cfg = ModelConfig.from_dict(data["config"])
+        parts = build_parts(cfg)
+    except Exception as e:
+        raise BundleError(f"{path}: bundle config does not fit these models ({e})") from None
+    for name, state in data.get("weights", {}).items():
+        if name not in parts:
+            raise BundleError(f"{path}: unknown part {name!r} in bundle")
+        try:
+            target = parts[name].state_dict()
+            parts[name].load_state_dict({k: v.to(target[k].dtype) if k in target else v for k, v in state.items()})
+        except Exception as e:
+            raise BundleError(f"{path}: weights of part {name!r} do not fit ({str(e).splitlines()[0][:160]})") from None
+        bad = [k for k, v in state.items() if v.is_floating_point() and not torch.isfinite(v).all()]
+        if bad:
+            raise BundleError(f"{path}: part {name!r} has non-finite weights in {bad[0]}")
+    meta = dict(data.get("metadata", {}))
+    return ModelBundle(cfg, parts, trained=bool(meta.get("trained", False)), metadata=meta).eval()
+
+
+def untrained_bundle(cfg: ModelConfig | None = None, seed: int = 0) -> ModelBundle:
+    """A freshly initialised bundle (trained=False) with a fixed seed, for streaming before
+    trained weights exist and for tests."""
+    with torch.random.fork_rng():
+        torch.manual_seed(seed)
+        parts = build_parts(cfg or ModelConfig.default())
+    return ModelBundle(cfg or ModelConfig.default(), parts, trained=False,
+                       metadata={"note": "untrained: freshly initialised weights"}).eval()
+
+
+def load_default(path: str | Path | None = None) -> ModelBundle:
+    """The shipped bundle, or an untrained one when none is shipped. A shipped file that is
+    broken raises BundleError (never silently replaced by untrained weights)."""
+    path = Path(path) if path is not None else DEFAULT_PATH
+    if not path.exists():
+        return untrained_bundle()
+    return load_bundle(path)

@@ -1,0 +1,46 @@
+"""`sketch2colab train`: build the dataset from clip folders and run a stage (or all)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .checkpoint import CheckpointError
+from .config import CONFIGS
+from .loop import init_distributed_from_env, train
+from .stages import StageUnavailable
+
+
+class TrainError(ValueError):
+    """Bad training input (no data, missing earlier stage, unreadable checkpoint): one line."""
+
+
+def train_command(stage: str, config: str = "default", data: list[str] | None = None,
+                  real: list[str] | None = None, steps: int | None = None, resume: bool = False,
+                  runs: str = "runs") -> dict:
+    from ..dataset import DatasetConfig, StoryboardWindows, split_files
+    cfg = CONFIGS[config]()
+    if steps is not None:
+        if steps < 1:
+            raise TrainError(f"--steps must be positive, got {steps}")
+        cfg.steps, cfg.stage_steps = steps, {}
+    files = []
+    for folder in data or []:
+        if not Path(folder).is_dir():
+            raise TrainError(f"{folder}: not a folder of clip NPZ files")
+        files += split_files(synth_dir=folder).train
+    for folder in real or []:
+        if not Path(folder).is_dir():
+            raise TrainError(f"{folder}: not a folder of clip NPZ files")
+        files += split_files(real_dir=folder).train
+    if not files:
+        raise TrainError("no training clips: pass --data DIR (synthesized clips) and/or --real DIR (imported capture)")
+    dataset = StoryboardWindows(files, DatasetConfig(seed=cfg.seed))
+    if len(dataset) == 0:
+        raise TrainError("the clip folders hold no clip long enough for a training window")
+    init_distributed_from_env()
+    try:
+        results = train(stage, cfg, dataset, runs=runs, resume=resume)
+    except (StageUnavailable, CheckpointError) as e:
+        raise TrainError(str(e)) from None
+    print(json.dumps(results, indent=1))
+    return results

@@ -1,0 +1,47 @@
+"""Training configuration: `default` for the 2-core CPU, `large` for a GPU."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..models.bundle import ModelConfig
+
+STAGES = ("vqvae", "encoders", "teacher", "student1", "potential", "ctmc", "surrogate", "student2")
+
+
+@dataclass
+class TrainConfig:
+    steps: int = 2000
+    batch_size: int = 16
+    lr: float = 2e-4
+    warmup_steps: int = 100          # linear warm-up, then constant (so resuming never changes the schedule)
+    weight_decay: float = 0.01
+    ema_decay: float = 0.999
+    grad_clip: float = 1.0
+    seed: int = 0
+    checkpoint_every_s: float = 180.0
+    log_every: int = 10
+    num_workers: int = 0
+    threads: int = 2                 # torch CPU threads per process
+    surrogate_init_latents: int = 8  # data latents whose decoder Jacobians initialise B_rho
+    model: ModelConfig = field(default_factory=ModelConfig.default)
+    stage_lr: dict = field(default_factory=lambda: {"student1": 1e-4, "student2": 1e-4, "surrogate": 1e-5})
+    stage_steps: dict = field(default_factory=dict)   # per-stage overrides of `steps` (stage "all")
+
+    def lr_for(self, stage: str) -> float:
+        return self.stage_lr.get(stage, self.lr)
+
+    def steps_for(self, stage: str) -> int:
+        return self.stage_steps.get(stage, self.steps)
+
+
+def default_config() -> TrainConfig:
+    return TrainConfig()
+
+
+def large_config() -> TrainConfig:
+    """The paper's settings (batch 64, EMA 0.999, lr 2e-4 teacher / 1e-4 student) on a GPU."""
+    return TrainConfig(steps=400_000, batch_size=64, num_workers=8, threads=8, checkpoint_every_s=600.0,
+                       model=ModelConfig.large(), stage_steps={"student1": 250_000, "student2": 250_000})
+
+
+CONFIGS = {"default": default_config, "large": large_config}

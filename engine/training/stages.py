@@ -1,0 +1,234 @@
+"""One task per training stage: which parts train, which are frozen (read from earlier stages'
+runs/<stage>/final.pt), and the loss. The trainer (loop.py) only sees StageTask.
+
+Order and dependencies:
+  vqvae                       -> VQ-VAE (then latent_std calibrated on data)
+  encoders                    -> sketch conditioner (L_align + lifting)
+  teacher    (vqvae, encoders?) -> teacher + conditioner (epsilon loss, 10% condition dropout)
+  student1   (vqvae, teacher)  -> student: L_RF + lambda_dist L_distill (phase 1)
+  potential  (vqvae)           -> V_psi: OT warm-up for the first half, then contrastive divergence
+  ctmc       (vqvae)           -> phase planner: L_CTMC on ground-truth motion features
+  surrogate  (vqvae)           -> B_rho: closed-form init from decoder Jacobians, then regression
+  student2   (all above)       -> student + planner + latent head: the full objective (phase 2)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import torch
+from torch import nn
+from torch.utils.data import Dataset
+
+from ..models import ctmc, encoders, potential, student, surrogate
+from ..models.bundle import build_parts
+from ..models.vqvae import mean_joint_error
+from . import checkpoint
+from .config import STAGES, TrainConfig
+
+LossFn = Callable[[dict, torch.Generator, int], dict]
+ENTITY_POS_DROP = 0.1   # share of steps trained without the entity-distance bias (first sampler step has none)
+
+
+class StageUnavailable(RuntimeError):
+    """A stage whose prerequisites (earlier stages or modules) are not there."""
+
+
+@dataclass
+class StageTask:
+    name: str
+    trainable: nn.ModuleDict
+    loss: LossFn                          # (batch, generator, step) -> {'loss': total, other terms...}
+    frozen: dict[str, nn.Module] = field(default_factory=dict)
+    finish: Callable[[nn.ModuleDict, Dataset], dict] | None = None  # on the EMA weights after training
+
+
+def sample_batch(dataset: Dataset, count: int) -> dict[str, torch.Tensor]:
+    """Up to `count` items spread over the dataset, stacked (for normalizers and calibration)."""
+    n = len(dataset)
+    idx = sorted({int(i) for i in torch.linspace(0, n - 1, min(count, n))})
+    items = [dataset[i] for i in idx]
+    return {k: torch.stack([it[k] for it in items]) for k in items[0]}
+
+
+def load_final(runs: Path, stage: str) -> dict[str, dict]:
+    """{part name: state dict} of an earlier stage's final EMA weights."""
+    return checkpoint.load(runs / stage / "final.pt")["parts"]
+
+
+def _frozen(parts: dict, runs: Path, stage: str, names: tuple[str, ...], needed_by: str) -> None:
+    if not (runs / stage / "final.pt").exists():
+        raise StageUnavailable(f"stage '{needed_by}' needs stage '{stage}' trained first ({runs / stage / 'final.pt'} missing)")
+    weights = load_final(runs, stage)
+    for name in names:
+        parts[name].load_state_dict(weights[name])
+        parts[name].eval().requires_grad_(False)
+
+
+def _latent(vqvae, batch: dict, generator: torch.Generator):
+    """Clean latent z0 (B, T_lat, V, d) and the entity positions for the distance bias (or None)."""
+    with torch.no_grad():
+        z0 = vqvae.encode(batch)
+        drop = torch.rand((), generator=generator) < ENTITY_POS_DROP
+        pos = None if drop else vqvae.decode_lowres(z0)
+    return z0, pos
+
+
+def build_stage(stage: str, cfg: TrainConfig, runs: Path, dataset: Dataset) -> StageTask:
+    if stage not in STAGES:
+        raise ValueError(f"unknown stage {stage!r}; expected one of {', '.join(STAGES)} or all")
+    torch.manual_seed(cfg.seed)  # the same initial weights on every rank and every run
+    parts = build_parts(cfg.model)
+    return _BUILDERS[stage](parts, cfg, Path(runs), dataset)
+
+
+def _vqvae(parts, cfg, runs, dataset) -> StageTask:
+    vq = parts["vqvae"]
+    vq.fit_normalizer(sample_batch(dataset, 256))
+
+    def finish(trained, data):
+        std = trained["vqvae"].calibrate_latent_scale(sample_batch(data, 256))
+        trained["vqvae"].eval()
+        batch = sample_batch(data, 64)
+        with torch.no_grad():
+            decoded = trained["vqvae"].decode(trained["vqvae"].encode(batch))
+        return {"latent_std": std, "joint_error_m": float(mean_joint_error(decoded["joints"], batch["joints"]))}
+
+    return StageTask("vqvae", nn.ModuleDict({"vqvae": vq}), lambda batch, g, step: vq.loss(batch), finish=finish)
+
+
+def _encoders(parts, cfg, runs, dataset) -> StageTask:
+    cond = parts["conditioner"]
+
+    def loss(batch, g, step):
+        s2d, s3d = cond.embed_2d(batch), cond.embed_3d(batch, batch)
+        align, parts_a = encoders.alignment_loss(s2d, s3d, encoders.condition_presence(batch), cond.cfg)
+        lift, parts_l = encoders.lift_loss(cond.lift(batch), batch, batch)
+        return {"loss": align + lift, **{k: v.detach() for k, v in {**parts_a, **parts_l}.items()}}
+
+    return StageTask("encoders", nn.ModuleDict({"conditioner": cond}), loss)
+
+
+def _teacher(parts, cfg, runs, dataset) -> StageTask:
+    _frozen(parts, runs, "vqvae", ("vqvae",), "teacher")
+    vq, teacher, cond = parts["vqvae"], parts["teacher"], parts["conditioner"]
+    if (runs / "encoders" / "final.pt").exists():  # aligned encoders are a better start; optional
+        cond.load_state_dict(load_final(runs, "encoders")["conditioner"])
+
+    def loss(batch, g, step):
+        z0, pos = _latent(vq, batch, g)
+        return teacher.loss(z0, cond(batch, z0.shape[1], z0.shape[2]), pos, generator=g)
+
+    return StageTask("teacher", nn.ModuleDict({"teacher": teacher, "conditioner": cond}), loss,
+                     frozen={"vqvae": vq})
+
+
+def _occupancy_labels(batch: dict) -> torch.Tensor:
+    """Phase labels (B, N, 3) where a clip has them, uniform elsewhere."""
+    has = batch["has_labels"].reshape(-1, 1, 1) > 0.5
+    return torch.where(has, batch["phase"], torch.full_like(batch["phase"], 1.0 / student.NUM_PHASES))
+
+
+def _student1(parts, cfg, runs, dataset) -> StageTask:
+    _frozen(parts, runs, "vqvae", ("vqvae",), "student1")
+    _frozen(parts, runs, "teacher", ("teacher", "conditioner"), "student1")
+    vq, teacher, cond, stu = parts["vqvae"], parts["teacher"], parts["conditioner"], parts["student"]
+
+    def loss(batch, g, step):
+        z0, pos = _latent(vq, batch, g)
+        with torch.no_grad():
+            c = cond(batch, z0.shape[1], z0.shape[2])
+        terms, _, _ = student.phase1_losses(stu, teacher, z0, c, pos, _occupancy_labels(batch), g)
+        return {"loss": student.combine_losses(terms),
+                **{k: v.detach() for k, v in terms.items()}}
+
+    return StageTask("student1", nn.ModuleDict({"student": stu}), loss,
+                     frozen={"vqvae": vq, "teacher": teacher, "conditioner": cond})
+
+
+def _potential(parts, cfg, runs, dataset) -> StageTask:
+    _frozen(parts, runs, "vqvae", ("vqvae",), "potential")
+    vq, pot = parts["vqvae"], parts["potential"]
+    warmup = cfg.steps_for("potential") // 2
+
+    def loss(batch, g, step):
+        z0, _ = _latent(vq, batch, g)
+        noise = torch.randn(z0.shape, generator=g)
+        if step < warmup:
+            total, terms = potential.ot_warmup_loss(pot, z0, noise, generator=g)
+        else:
+            neg = potential.langevin_negatives(pot, 0.5 * z0 + 0.5 * noise, generator=g)
+            total, terms = potential.contrastive_divergence_loss(pot, z0, neg)
+        return {"loss": total, **terms}
+
+    return StageTask("potential", nn.ModuleDict({"potential": pot}), loss, frozen={"vqvae": vq})
+
+
+def _ctmc(parts, cfg, runs, dataset) -> StageTask:
+    _frozen(parts, runs, "vqvae", ("vqvae",), "ctmc")
+    vq, planner = parts["vqvae"], parts["planner"]
+
+    def loss(batch, g, step):
+        z0, _ = _latent(vq, batch, g)
+        plan = planner(z0, batch, batch["contact"])
+        total, terms = ctmc.ctmc_loss(plan, batch["phase"], batch["has_labels"], planner.cfg)
+        return {"loss": total, **{k: v.detach() for k, v in terms.items()}}
+
+    return StageTask("ctmc", nn.ModuleDict({"planner": planner}), loss, frozen={"vqvae": vq})
+
+
+def _surrogate(parts, cfg, runs, dataset) -> StageTask:
+    _frozen(parts, runs, "vqvae", ("vqvae",), "surrogate")
+    vq, sur = parts["vqvae"], parts["surrogate"]
+    with torch.no_grad():
+        latents = vq.encode(sample_batch(dataset, cfg.surrogate_init_latents))
+    surrogate.init_from_jacobians(sur, vq.decode, latents)
+
+    def loss(batch, g, step):
+        z0, _ = _latent(vq, batch, g)
+        cot = surrogate.random_cotangents(z0.shape[0], frames=sur.cfg.frames, generator=g)
+        total = surrogate.surrogate_loss(sur, vq.decode, z0, cot)
+        return {"loss": total}
+
+    return StageTask("surrogate", nn.ModuleDict({"surrogate": sur}), loss, frozen={"vqvae": vq})
+
+
+def _student2(parts, cfg, runs, dataset) -> StageTask:
+    _frozen(parts, runs, "vqvae", ("vqvae",), "student2")
+    _frozen(parts, runs, "teacher", ("teacher", "conditioner"), "student2")
+    _frozen(parts, runs, "potential", ("potential",), "student2")
+    for stage, name in (("student1", "student"), ("ctmc", "planner")):
+        if not (runs / stage / "final.pt").exists():
+            raise StageUnavailable(f"stage 'student2' needs stage '{stage}' trained first")
+        parts[name].load_state_dict(load_final(runs, stage)[name])
+    vq, teacher, cond, stu = parts["vqvae"], parts["teacher"], parts["conditioner"], parts["student"]
+    planner, head, pot = parts["planner"], parts["latent_head"], parts["potential"]
+    weights = student.LossWeights()
+
+    def loss(batch, g, step):
+        z0, pos = _latent(vq, batch, g)
+        with torch.no_grad():
+            enc = cond.encode(batch, z0.shape[1], z0.shape[2])
+            s3d = cond.embed_3d(batch, batch)
+        plan = planner(z0, batch, batch["contact"])
+        terms, sample, v = student.phase1_losses(stu, teacher, z0, enc.conditioning, pos,
+                                                 plan.occupancy.detach(), g)
+        terms["ctmc"], _ = ctmc.ctmc_loss(plan, batch["phase"], batch["has_labels"], planner.cfg)
+        terms["lat"], _ = encoders.latent_alignment_loss(head, z0, s3d, enc.present, cond.cfg)
+        # Total potential V_psi + lambda_lat E_lat at the student's state; raw-space energies
+        # join once they can be built from batched controls (see report).
+        z = sample.z_t.detach().requires_grad_(True)
+        with torch.enable_grad():
+            total_v = pot(z) + weights.lat * encoders.latent_energy(head, z, enc.s2d, enc.present)
+            (grad_v,) = torch.autograd.grad(total_v.sum(), z)
+        terms["lyap"] = potential.lyapunov_loss(grad_v, -v, pot.cfg.kappa)
+        terms["consist"] = student.consistency_loss(stu, sample, pos, plan.occupancy.detach(), v)
+        return {"loss": student.combine_losses(terms, weights), **{k: t.detach() for k, t in terms.items()}}
+
+    return StageTask("student2", nn.ModuleDict({"student": stu, "planner": planner, "latent_head": head}), loss,
+                     frozen={"vqvae": vq, "teacher": teacher, "conditioner": cond, "potential": pot})
+
+
+_BUILDERS = {"vqvae": _vqvae, "encoders": _encoders, "teacher": _teacher, "student1": _student1,
+             "potential": _potential, "ctmc": _ctmc, "surrogate": _surrogate, "student2": _student2}

@@ -1,0 +1,133 @@
+"""Training: EMA, deterministic batches, resume == uninterrupted, DDP on gloo, every stage end
+to end on fake clips, and the model bundle."""
+import dataclasses
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+import torch
+import torch.multiprocessing as mp
+
+from engine.models.bundle import BundleError, ModelConfig, load_bundle, load_default, untrained_bundle
+from engine.models.unet import UNetConfig
+from engine.models.vqvae import VQVAEConfig
+from engine.training import checkpoint
+from engine.training.config import STAGES, TrainConfig
+from engine.training.ema import EMA
+from engine.training.export import bundle_from_runs
+from engine.training.loop import StepBatches, train
+from engine.training.stages import StageUnavailable
+from model_fixtures import FakeClips
+
+torch.set_num_threads(1)
+TINY_UNET = UNetConfig(channels=(16, 16, 16, 16), embed_dim=32, heads=2)
+TINY_MODEL = ModelConfig(vqvae=VQVAEConfig(channels=16, codebook_size=16), teacher_unet=TINY_UNET,
+                         student_unet=dataclasses.replace(TINY_UNET, n_heads_out=3))
+
+
+def tiny_config(steps: int = 2) -> TrainConfig:
+    return TrainConfig(steps=steps, batch_size=2, threads=1, warmup_steps=1, model=TINY_MODEL,
+                       surrogate_init_latents=1, checkpoint_every_s=1e9)
+
+
+def test_ema_update():
+    model = torch.nn.Linear(2, 1)
+    ema = EMA(model, decay=0.9)
+    before = ema.shadow.weight.clone()
+    with torch.no_grad():
+        model.weight.add_(1.0)
+    ema.update(model)
+    assert torch.allclose(ema.shadow.weight, 0.9 * before + 0.1 * model.weight)
+    assert not ema.shadow.weight.requires_grad
+
+
+def test_step_batches_are_deterministic_and_split_across_ranks():
+    a = list(StepBatches(10, 3, steps=5, start=0, seed=1))
+    assert a == list(StepBatches(10, 3, steps=5, start=0, seed=1))
+    assert list(StepBatches(10, 3, steps=5, start=2, seed=1)) == a[2:]
+    r0, r1 = (list(StepBatches(10, 3, 5, 0, 1, rank=r, world=2)) for r in (0, 1))
+    assert r0 != r1 and all(len(b) == 3 for b in r0 + r1)
+
+
+def test_resume_equals_uninterrupted(tmp_path):
+    data = FakeClips(4)
+    train("vqvae", tiny_config(4), data, runs=tmp_path / "straight", progress=False)
+    train("vqvae", tiny_config(2), data, runs=tmp_path / "resumed", progress=False)
+    train("vqvae", tiny_config(4), data, runs=tmp_path / "resumed", resume=True, progress=False)
+    a = checkpoint.load(tmp_path / "straight" / "vqvae" / "checkpoint.pt")
+    b = checkpoint.load(tmp_path / "resumed" / "vqvae" / "checkpoint.pt")
+    assert a["step"] == b["step"] == 4
+    for key in ("model", "ema"):
+        for name, value in a[key].items():
+            assert torch.equal(value, b[key][name]), (key, name)
+
+
+def test_later_stage_without_prerequisite_is_a_clear_error(tmp_path):
+    with pytest.raises(StageUnavailable, match="needs stage 'vqvae'"):
+        train("teacher", tiny_config(), FakeClips(2), runs=tmp_path, progress=False)
+
+
+def _ddp_worker(rank: int, world: int, init_file: str, runs: str):
+    torch.distributed.init_process_group("gloo", init_method=f"file://{init_file}", rank=rank, world_size=world)
+    try:
+        train("vqvae", tiny_config(2), FakeClips(4), runs=runs, progress=False)
+        flat = torch.cat([p.detach().flatten() for p in _trained_vqvae_params(runs)])
+        gathered = [torch.zeros_like(flat) for _ in range(world)]
+        torch.distributed.all_gather(gathered, flat)
+        if rank == 0:
+            torch.save({"same": all(torch.equal(gathered[0], g) for g in gathered)}, Path(runs) / "ddp.pt")
+    finally:
+        torch.distributed.destroy_process_group()
+
+
+def _trained_vqvae_params(runs):
+    state = checkpoint.load(Path(runs) / "vqvae" / "checkpoint.pt")["model"]
+    return [v for k, v in state.items() if v.is_floating_point()]
+
+
+def test_ddp_two_processes_on_gloo(tmp_path):
+    init_file = tmp_path / "init"
+    mp.spawn(_ddp_worker, args=(2, str(init_file), str(tmp_path)), nprocs=2, join=True)
+    assert torch.load(tmp_path / "ddp.pt")["same"]
+    assert (tmp_path / "vqvae" / "final.pt").exists()
+
+
+def test_every_stage_end_to_end_then_bundle(tmp_path):
+    results = train("all", tiny_config(2), FakeClips(4), runs=tmp_path / "runs", progress=False)
+    assert list(results) == list(STAGES)
+    for stage, metrics in results.items():
+        assert torch.isfinite(torch.tensor(metrics["loss"])), stage
+    assert results["vqvae"]["joint_error_m"] > 0
+    bundle = bundle_from_runs(tmp_path / "runs", TINY_MODEL)
+    assert bundle.trained and bundle.metadata["stages"] == list(STAGES)
+    bundle.save(tmp_path / "bundle.pt")
+    loaded = load_bundle(tmp_path / "bundle.pt")
+    assert loaded.trained
+    w0 = bundle.student.backbone.output.weight
+    assert torch.allclose(loaded.student.backbone.output.weight, w0, atol=1e-2 * float(w0.abs().max()) + 1e-6)
+
+
+def test_bundle_fallback_roundtrip_and_errors(tmp_path):
+    fallback = load_default(tmp_path / "missing.pt")
+    assert fallback.trained is False and "untrained" in fallback.metadata["note"]
+    untrained_bundle().save(tmp_path / "b.pt")
+    start = time.perf_counter()
+    loaded = load_bundle(tmp_path / "b.pt")
+    assert time.perf_counter() - start < 10  # ~1 s on a quiet 2-core machine
+    z = torch.randn(1, 30, 3, 32)
+    assert loaded.vqvae.decode(z)["joints"].shape == (1, 120, 2, 22, 3)
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(BundleError, match="not a readable model bundle"):
+        load_bundle(tmp_path / "junk.pt")
+    torch.save({"something": 1}, tmp_path / "other.pt")
+    with pytest.raises(BundleError, match="not a Sketch2Colab model bundle"):
+        load_bundle(tmp_path / "other.pt")
+    data = torch.load(tmp_path / "b.pt")
+    data["weights"]["student"]["backbone.output.weight"] = torch.zeros(3, 3).half()
+    torch.save(data, tmp_path / "wrong.pt")
+    with pytest.raises(BundleError, match="weights of part 'student' do not fit"):
+        load_bundle(tmp_path / "wrong.pt")
+    with pytest.raises(ValueError):  # BundleError is a ValueError for callers that catch those
+        load_default(tmp_path / "junk.pt")
