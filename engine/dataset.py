@@ -8,11 +8,11 @@ the origin, then a random yaw about +Y), and sketchified with a random noise lev
 camera in the wide training ranges. Randomness is seeded by (config.seed, epoch, index), so an
 item is the same every time it is read in the same epoch.
 
-Item (a dict of torch tensors; N = window, fixed H = 2 humans, O = 1 object slot, K = 2 anchors):
+Item (a dict of torch tensors; N = window, fixed H = 2 humans, O = 1 object slot, K = 4 anchors):
   joints        (N, 2, 22, 3) float32   world joints, metres, Y up
   rot6d         (N, 2, 22, 6) float32   local rotations (the root's carries the yaw)
   obj_pose      (N, 1, 7)     float32   xyz + quaternion wxyz; zeros when there is no object
-  obj_anchors   (N, 1, 2, 3)  float32   world anchors; zeros when there is no object
+  obj_anchors   (N, 1, 4, 3)  float32   world anchors; zeros when there is no object
   obj_present   ()            float32   1 when the clip has an object
   phase         (N, 3)        float32   approach / contact / carry occupancy labels
   contact_label (N, 2, 2)     float32   hand contact labels (named apart from the control
@@ -40,11 +40,11 @@ from torch.utils.data import Dataset
 
 from .clip import ClipError, MotionClip
 from .controls import Controls, build_controls
+from .objects import NUM_ANCHORS
 from .rotations import matrix_to_6d, matrix_to_quat, quat_to_matrix, sixd_to_matrix
 from .sketchify import SketchifyConfig, sketchify
 
 NUM_HUMANS = 2
-NUM_ANCHORS = 2
 
 # CMU salsa takes (lead/follow pair) that training never sees. Take 10 is the held-out pair
 # because it is the shortest (1197 frames at 120 fps, ~10 s), so holding it out costs the least

@@ -79,15 +79,24 @@ def _box_sdf(q: np.ndarray, half: tuple[float, float, float]) -> np.ndarray:
     return np.linalg.norm(np.maximum(d, 0), axis=-1) + np.minimum(np.max(d, axis=-1), 0)
 
 
+GRIP_SIGNS = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)  # (K=4, 2): sx, sz
+PALM = 0.02  # m from the surface to the wrist joint of a hand flat on it
+NUM_ANCHORS = len(GRIP_SIGNS)
+
+
 def default_anchors(kind: str, size: tuple[float, float, float]) -> np.ndarray:
-    """Grasp points: the left and right handles (x = -/+), plus far edge points for a table."""
+    """(4, 3) grip points where the wrist joint is when the palm is on the surface, ordered
+    [(-x,-z), (-x,+z), (+x,-z), (+x,+z)]: two on each x end, so two people holding the two
+    ends, or one person holding the near side, each have a grip for each hand."""
     w, h, d = size
-    if kind == "table":  # under the table-top edge, at the two short ends
-        y = h - TABLE_TOP
-        return np.array([[-w / 2, y, 0.0], [w / 2, y, 0.0]])
-    if kind == "canister":
-        return np.array([[-w / 2, 0.7 * h, 0.0], [w / 2, 0.7 * h, 0.0]])
-    return np.array([[-w / 2, 0.5 * h, 0.0], [w / 2, 0.5 * h, 0.0]])
+    if kind == "table":      # at the top's edge on the two short ends, palm under it
+        a, y, b = w / 2 + PALM, h - TABLE_TOP - PALM, 0.3 * d
+    elif kind == "canister":  # on the wall, 35 degrees either side of the x axis
+        r = min(w, d) / 2 + PALM
+        a, y, b = r * np.cos(np.radians(35)), 0.7 * h, r * np.sin(np.radians(35))
+    else:                    # box: high on the end faces, where a lifting hand goes
+        a, y, b = w / 2 + PALM, 0.75 * h, 0.28 * d
+    return np.column_stack([GRIP_SIGNS[:, 0] * a, np.full(len(GRIP_SIGNS), y), GRIP_SIGNS[:, 1] * b])
 
 
 def local_to_world(p: np.ndarray, pose: np.ndarray) -> np.ndarray:

@@ -1,13 +1,14 @@
 """Fake training items and batches with the dataset's field names and shapes, for model tests.
 
 An item is what engine.dataset.StoryboardWindows yields: float32 tensors (contact_anchor int64), N frames, 2 humans, 1 object slot with
-2 anchors, plus every field of engine.controls.Controls. The motion is plausible enough for
+K = NUM_ANCHORS anchors, plus every field of engine.controls.Controls. The motion is plausible enough for
 metre-scale checks: rest-pose people walking on the ground, a box between them.
 """
 from __future__ import annotations
 
 import torch
 
+from engine.objects import NUM_ANCHORS
 from engine.skeleton import rest_pose
 
 FRAMES = 120
@@ -26,7 +27,9 @@ def fake_item(seed: int = 0, frames: int = FRAMES, obj_present: bool = True) -> 
     box = root.mean(1) + torch.tensor([0.0, 0.8, 0.0])                      # (N, 3)
     quat = torch.tensor([1.0, 0, 0, 0]).expand(n, 4)
     obj_pose = torch.cat([box, quat], -1)[:, None]                          # (N, 1, 7)
-    obj_anchors = box[:, None, None] + torch.tensor([[-0.25, 0.0, 0.0], [0.25, 0.0, 0.0]])[None, None]
+    around = torch.linspace(0, 6.283, NUM_ANCHORS + 1)[:NUM_ANCHORS]
+    offsets = 0.25 * torch.stack([around.cos(), torch.zeros_like(around), around.sin()], -1)  # (K, 3)
+    obj_anchors = box[:, None, None] + offsets[None, None]                  # (N, 1, K, 3)
     phase = torch.softmax(torch.randn(n, 3, generator=g), -1)
     contact_label = (torch.rand(n, 2, 2, generator=g) > 0.7).float()
     if not obj_present:

@@ -20,7 +20,7 @@ def test_from_joints_save_load_round_trip(tmp_path):
     joints = two_people()
     pose = np.tile([0, 0, 0, 1, 0, 0, 0], (10, 1, 1)).astype(float)
     spec = ObjectSpec("box")
-    anchors = local_to_world(np.broadcast_to(spec.anchors, (10, 1, 2, 3)), pose)
+    anchors = local_to_world(np.broadcast_to(spec.anchors, (10, 1, 4, 3)), pose)
     clip = MotionClip.from_joints(joints, 20, obj_pose=pose, obj_anchors=anchors,
                                   obj_type=np.array(["box"]), obj_size=np.array([spec.size]),
                                   phase=np.tile([1, 0, 0], (10, 1)), contact=np.zeros((10, 2, 2)),
@@ -78,4 +78,4 @@ def test_object_pose_transforms_invert():
     pose = np.concatenate([[0.5, 0.2, -1.0], matrix_to_quat(axis_angle_to_matrix(np.array([0.1, 1.2, -0.3])))])
     p = np.random.default_rng(2).normal(size=(7, 3))
     assert np.allclose(world_to_local(local_to_world(p, pose), pose), p)
-    assert ObjectSpec("box").anchors.shape == (2, 3)
+    assert ObjectSpec("box").anchors.shape == (4, 3)

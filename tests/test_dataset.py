@@ -43,7 +43,7 @@ def test_windows_cover_every_clip_with_the_tail(exact):
 def test_items_have_fixed_shapes_and_dtypes(exact):
     n = EXACT.window
     expected = {"joints": (n, 2, 22, 3), "rot6d": (n, 2, 22, 6), "obj_pose": (n, 1, 7),
-                "obj_anchors": (n, 1, 2, 3), "obj_present": (), "phase": (n, 3), "contact_label": (n, 2, 2),
+                "obj_anchors": (n, 1, 4, 3), "obj_present": (), "phase": (n, 3), "contact_label": (n, 2, 2),
                 "has_labels": (), "valid": (n,), "noise": (), "kp2d": (n, 2, 22, 2), "kp_mask": (n, 2, 22),
                 "tr2d": (n, 2, 22, 2), "tr_mask": (n, 2, 22), "obj2d": (n, 1, 4), "obj_mask": (n, 1),
                 "objpath2d": (n, 1, 2), "objpath_mask": (n, 1), "contact": (n, 2, 2),

@@ -64,13 +64,12 @@ def test_object_path_csv(clip, tmp_path):
     with export_object_path(clip, tmp_path / "obj.csv").open() as f:
         rows = list(csv.reader(f))
     assert rows[0][:10] == ["frame", "time_s", "object", "x", "y", "z", "qw", "qx", "qy", "qz"]
-    assert rows[0][10:] == [f"anchor{k}_{a}" for k in range(2) for a in "xyz"]
+    assert rows[0][10:] == [f"anchor{k}_{a}" for k in range(clip.obj_anchors.shape[2]) for a in "xyz"]
     assert len(rows) == FRAMES + 1
     values = np.array([r[3:] for r in rows[1:]], float)
     np.testing.assert_allclose(values[:, :7], clip.obj_pose[:, 0], atol=1e-5)
     assert float(rows[-1][1]) == pytest.approx((FRAMES - 1) / 20.0)
-    # Default box anchors sit at the box's left / right faces, half its height up.
-    np.testing.assert_allclose(values[0, 7:10], [-0.225, 0.575, 0.0], atol=1e-5)
+    np.testing.assert_allclose(values[:, 7:].reshape(FRAMES, -1, 3), clip.obj_anchors[:, 0], atol=1e-5)
 
 
 def read_glb(path):

@@ -32,14 +32,15 @@ def moving_person(n, rng, start, end, yaw):
 
 def carry_clip(n=120, seed=0, fps=20.0):
     """Two people facing each other carry a box along +Z; A's right and B's left hand hold its
-    two anchors over frames [n/4, 3n/4)."""
+    anchors 0 and 1 over frames [n/4, 3n/4) (anchors 2 and 3 are 10 cm further along +Z)."""
     rng = np.random.default_rng(seed)
     ja, ra = moving_person(n, rng, (-0.6, 0.0), (-0.6, 2.0), np.pi / 2)
     jb, rb = moving_person(n, rng, (0.6, 0.0), (0.6, 2.0), -np.pi / 2)
     joints = np.stack([ja, jb], axis=1)
     pose = np.zeros((n, 1, 7))
     pose[:, 0, 2], pose[:, 0, 1], pose[:, 0, 3] = np.linspace(0.0, 2.0, n), 0.5, 1.0
-    anchors = np.stack([joints[:, 0, R_WRIST], joints[:, 1, L_WRIST]], axis=1)[:, None]
+    held = np.stack([joints[:, 0, R_WRIST], joints[:, 1, L_WRIST]], axis=1)
+    anchors = np.concatenate([held, held + [0.0, 0.0, 0.1]], axis=1)[:, None]
     contact = np.zeros((n, 2, 2))
     contact[n // 4:3 * n // 4, 0, 1] = contact[n // 4:3 * n // 4, 1, 0] = 1
     phase = np.zeros((n, 3))

@@ -93,7 +93,7 @@ BROKEN = [
     ("keyposes.1.frame", 60, "keyposes[1].frame: frame 60 is outside the clip"),
     ("contacts.0.agent", "C", "contacts[0].agent: unknown agent 'C'"),
     ("trajectories.0.joint", "tail", "trajectories[0].joint: unknown joint 'tail'"),
-    ("contacts.0.anchor", 5, "contacts[0].anchor: object 'box' has 2 anchors"),
+    ("contacts.0.anchor", 5, "contacts[0].anchor: object 'box' has 4 anchors"),
     ("trajectories.0.end", -1, "trajectories[0].end: frame -1 is outside"),
     ("fps", None, "storyboard: missing required field 'fps'"),
     ("version", 7, "version: this program reads storyboard version 1"),

@@ -29,11 +29,12 @@ import torch.autograd.forward_ad as fwAD
 import torch.nn.functional as F
 from torch import nn
 
+from ..objects import NUM_ANCHORS
 from ..scene import HUMAN_DIM, SceneLayout
 from ..skeleton import NUM_JOINTS
 
 Decoder = Callable[[torch.Tensor], "dict[str, torch.Tensor] | torch.Tensor"]
-DEFAULT_LAYOUT = SceneLayout(num_humans=2, anchors_per_object=(2,))
+DEFAULT_LAYOUT = SceneLayout(num_humans=2, anchors_per_object=(NUM_ANCHORS,))
 
 
 def flatten_motion(motion: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -69,7 +70,7 @@ class SurrogateConfig:
     latent_steps: int = 30     # T_lat (N must be a multiple)
     entities: int = 3          # V
     latent_dim: int = 32       # d
-    motion_dim: int = DEFAULT_LAYOUT.dim  # D = 409 for 2 humans + 1 object with 2 anchors
+    motion_dim: int = DEFAULT_LAYOUT.dim  # D = 415 for 2 humans + 1 object with 4 anchors
     rank: int = 64             # r per offset block (of V*d = 96): cosine ~0.95 on the VQ-VAE decoder
     bandwidth: int = 2         # w: offsets -w..w latent steps
 

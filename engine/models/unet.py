@@ -191,7 +191,7 @@ class TemporalUNet(nn.Module):
         lengths = [t]
         for _ in range(len(cfg.channels) - 1):
             lengths.append((lengths[-1] + 1) // 2)
-        attn_levels = sorted({*(i for i in cfg.attention_levels), len(lengths) - 1})
+        attn_levels = sorted({*cfg.attention_levels, len(lengths) - 1})
         tbias = {i: self._temporal_bias(cond, lengths[i], b, z) for i in attn_levels}
         distance = {}
         if entity_pos is not None:

@@ -8,7 +8,7 @@ the sum of the level codes z = sum_l z^(l), divided by `latent_std` so that it h
 
 Frame features per entity (all in metres, Y up):
   human  (201): pelvis position (3), joints relative to the pelvis (22*3), local 6D rotations (22*6)
-  object  (13): translation (3), quaternion wxyz (4), anchors relative to the translation (K*3, K=2)
+  object  (19): translation (3), quaternion wxyz (4), anchors relative to the translation (K*3, K=4)
 Normalization: per-channel mean / std over the training data, stored as buffers (`fit_normalizer`);
 std is floored at 1 cm so that constant channels (the pelvis' own offset) do not blow up.
 An absent object (obj_present = 0) enters as zero features and is left out of every loss.
@@ -22,6 +22,7 @@ import torch.distributed as dist
 import torch.nn.functional as F
 from torch import nn
 
+from ..objects import NUM_ANCHORS
 from ..skeleton import NUM_JOINTS
 
 NUM_HUMANS = 2
@@ -38,7 +39,7 @@ class VQVAEConfig:
     levels: int = 2               # residual quantizer levels L
     codebook_size: int = 512      # K_l, the same for every level
     downsample_stages: int = 2    # each halves time: 2 -> x4
-    anchors_per_object: int = 2
+    anchors_per_object: int = NUM_ANCHORS
     commitment: float = 0.25
     codebook_decay: float = 0.99  # EMA codebook updates
     dead_threshold: float = 0.03  # EMA assignments per batch below which a code is restarted
@@ -100,7 +101,7 @@ class CodebookLevel(nn.Module):
         self.decay, self.dead_threshold = decay, dead_threshold
         self.register_buffer("codebook", torch.randn(size, dim) * 0.1)
         self.register_buffer("usage", torch.zeros(size))           # EMA assignments per batch
-        self.register_buffer("code_sum", self.codebook.clone() * 0)
+        self.register_buffer("code_sum", torch.zeros(size, dim))
         self.register_buffer("initialized", torch.tensor(False))
         self.register_buffer("restarts", torch.tensor(0))           # total codes restarted
 
