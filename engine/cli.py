@@ -79,6 +79,50 @@ def cmd_train(args) -> int:
     return 0
 
 
+def _sampler_config(args):
+    from .sampling.sampler import SamplerConfig
+    if args.steps < 1 or args.variations < 1:
+        raise UserError("--steps and --variations must be at least 1")
+    return SamplerConfig(steps=args.steps, seed=args.seed, cfg=args.cfg,
+                         method="student" if args.method == "retrieval" else args.method,
+                         variations=args.variations, use_energy=not args.no_energy, use_ctmc=not args.no_ctmc)
+
+
+def cmd_generate(args) -> int:
+    from pathlib import Path
+
+    from .export import export_bvh_dir
+    from .generate import print_summary, run_generation, summary, write_outputs, generate
+    from .models.bundle import BundleError, load_bundle, load_default
+    from .sampling.sampler import SamplerError
+    from .storyboard import Storyboard
+    sb = Storyboard.load(args.storyboard)
+    config = _sampler_config(args)
+    try:
+        bundle = None if args.method == "retrieval" else (load_bundle(args.checkpoint) if args.checkpoint
+                                                          else load_default())
+        result = generate(sb, config, bundle, args.method, log_steps=args.log_steps)
+    except (BundleError, SamplerError) as e:
+        raise UserError(str(e)) from None
+    written = write_outputs(result, Path(args.output))
+    if args.bvh_dir:
+        written += export_bvh_dir(result.clips[0], args.bvh_dir)
+    print(f"wrote {', '.join(str(p) for p in written)}", file=sys.stderr)
+    print_summary(summary(result, sb, args.method))
+    return 0
+
+
+def cmd_demo(args) -> int:
+    import json
+
+    from .demo import run_demo
+    from .sampling.sampler import SamplerConfig
+    for row in run_demo(args.output, SamplerConfig(steps=args.steps, seed=args.seed), render=not args.no_render):
+        print(json.dumps(row))
+    print(f"results in {args.output}/", file=sys.stderr)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="sketch2colab", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -123,6 +167,28 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--resume", action="store_true", help="continue from runs/STAGE/checkpoint.pt")
     s.add_argument("--runs", default="runs", help="output root (default runs/)")
     s.set_defaults(func=cmd_train)
+
+    s = sub.add_parser("generate", help="generate motion for a storyboard")
+    s.add_argument("storyboard")
+    s.add_argument("-o", "--output", required=True, metavar="MOTION.npz")
+    s.add_argument("--steps", type=int, default=30, help="solver steps (default 30; DDIM steps for teacher-ddim)")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--cfg", type=float, default=1.6, help="classifier-free guidance weight (default 1.6)")
+    s.add_argument("--method", choices=["student", "teacher-ddpm", "teacher-ddim", "retrieval"], default="student")
+    s.add_argument("--no-energy", action="store_true", help="no energy guidance (ablation)")
+    s.add_argument("--no-ctmc", action="store_true", help="no CTMC phase planning (ablation)")
+    s.add_argument("--variations", type=int, default=1, help="K variations in one batch")
+    s.add_argument("--bvh-dir", metavar="DIR", help="also write one BVH per person here")
+    s.add_argument("--checkpoint", metavar="BUNDLE.pt", help="model bundle (default: the shipped one)")
+    s.add_argument("--log-steps", action="store_true", help="one line per solver step instead of a bar")
+    s.set_defaults(func=cmd_generate)
+
+    s = sub.add_parser("demo", help="run the bundled example storyboards headless; contact sheets and GIFs")
+    s.add_argument("-o", "--output", default="demo_out")
+    s.add_argument("--steps", type=int, default=30)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--no-render", action="store_true", help="skip the contact sheets and GIFs")
+    s.set_defaults(func=cmd_demo)
     return p
 
 

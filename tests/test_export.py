@@ -9,6 +9,7 @@ import struct
 import numpy as np
 import pytest
 
+from engine.objects import ObjectSpec, local_to_world
 from engine.clip import MotionClip
 from engine.export import (add_export_arguments, export_bvh_dir, export_gltf, export_npz,
                            export_object_path, export_requested)
@@ -64,12 +65,15 @@ def test_object_path_csv(clip, tmp_path):
     with export_object_path(clip, tmp_path / "obj.csv").open() as f:
         rows = list(csv.reader(f))
     assert rows[0][:10] == ["frame", "time_s", "object", "x", "y", "z", "qw", "qx", "qy", "qz"]
-    assert rows[0][10:] == [f"anchor{k}_{a}" for k in range(clip.obj_anchors.shape[2]) for a in "xyz"]
+    # The clip stores no anchors: the export carries the object type's grips along its pose.
+    grips = local_to_world(np.broadcast_to(ObjectSpec(str(clip.obj_type[0]), tuple(clip.obj_size[0])).anchors,
+                                           (FRAMES, 4, 3)), clip.obj_pose[:, 0].astype(float))
+    assert rows[0][10:] == [f"anchor{k}_{a}" for k in range(4) for a in "xyz"]
     assert len(rows) == FRAMES + 1
     values = np.array([r[3:] for r in rows[1:]], float)
     np.testing.assert_allclose(values[:, :7], clip.obj_pose[:, 0], atol=1e-5)
     assert float(rows[-1][1]) == pytest.approx((FRAMES - 1) / 20.0)
-    np.testing.assert_allclose(values[:, 7:].reshape(FRAMES, -1, 3), clip.obj_anchors[:, 0], atol=1e-5)
+    np.testing.assert_allclose(values[:, 7:].reshape(FRAMES, -1, 3), grips, atol=1e-5)
 
 
 def read_glb(path):

@@ -19,7 +19,7 @@ def test_shapes_and_decode_layout():
     assert out["joints"].shape == (2, 120, 2, 22, 3)
     assert out["rot6d"].shape == (2, 120, 2, 22, 6)
     assert out["obj_pose"].shape == (2, 120, 1, 7)
-    assert out["obj_anchors"].shape == (2, 120, 1, 2, 3)
+    assert out["obj_anchors"].shape == (2, 120, 1, SMALL.anchors_per_object, 3)
     assert torch.allclose(out["obj_pose"][..., 3:].norm(dim=-1), torch.ones(2, 120, 1), atol=1e-5)
     assert model.decode_lowres(z).shape == (2, 30, 3, 3)
     q = model.quantize(model.encode_continuous(batch))

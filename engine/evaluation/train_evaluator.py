@@ -28,6 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 import torch.nn.functional as F
+from torch.utils.data import DataLoader
 
 from ..dataset import DatasetConfig, StoryboardWindows, split_files
 from ..metrics import r_precision
@@ -50,11 +51,12 @@ class TrainConfig:
     views: int = 2                 # storyboards drawn per training window
     seed: int = 0
     log_every: int = 200
+    workers: int = 0               # processes drawing storyboards for the cache (0 = this one)
 
     @classmethod
     def large(cls) -> "TrainConfig":
         """For a GPU: wider encoders, more steps and storyboard views."""
-        return cls(model=EvaluatorConfig.large(), steps=20000, batch=128, views=8, lr=5e-4)
+        return cls(model=EvaluatorConfig.large(), steps=20000, batch=128, views=8, lr=5e-4, workers=8)
 
 
 CONFIGS = {"default": TrainConfig, "large": TrainConfig.large}
@@ -74,7 +76,7 @@ class FeatureCache:
 
 
 def build_cache(files: Sequence[Path], model: EvaluatorConfig, views: int, seed: int,
-                chunk: int = 64) -> FeatureCache:
+                workers: int = 0, chunk: int = 64) -> FeatureCache:
     """Windows of `files` (dataset defaults, the model's window and fps), each sketchified in
     dataset epochs 0..views-1. Motion features come from epoch 0: they do not depend on the
     dataset's random yaw."""
@@ -83,10 +85,8 @@ def build_cache(files: Sequence[Path], model: EvaluatorConfig, views: int, seed:
         raise ValueError("no training windows: every clip is shorter than the dataset's min_frames")
     motion, story, valid = [], [[] for _ in range(views)], []
     for view in range(views):
-        data.set_epoch(view)
-        for lo in range(0, len(data), chunk):
-            items = [data[i] for i in range(lo, min(lo + chunk, len(data)))]
-            batch = {k: torch.stack([it[k] for it in items]) for k in items[0]}
+        data.set_epoch(view)  # before the loader copies the dataset into its workers
+        for batch in DataLoader(data, batch_size=chunk, num_workers=workers):
             story[view].append(story_features(batch, batch["valid"]).half())
             if view == 0:
                 motion.append(motion_features(batch["joints"], batch["obj_pose"], batch["obj_present"],
@@ -251,8 +251,8 @@ def train_evaluator(train_files: Sequence[Path], val_files: Sequence[Path], out:
     out = Path(out)
     torch.manual_seed(config.seed)
     log(f"caching {len(train_files)} train / {len(val_files)} val clips x {config.views} views ...")
-    train = build_cache(train_files, config.model, config.views, config.seed)
-    val = build_cache(val_files, config.model, 1, config.seed + 1) if val_files else None
+    train = build_cache(train_files, config.model, config.views, config.seed, config.workers)
+    val = build_cache(val_files, config.model, 1, config.seed + 1, config.workers) if val_files else None
     evaluator = MotionEvaluator(config.model).to(device)
     log(f"{len(train)} train windows, {len(val) if val else 0} val windows, "
         f"{evaluator.num_parameters():,} parameters, {time.time() - began:.0f} s")
@@ -288,6 +288,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu")
     parser.add_argument("--threads", type=int, help="torch CPU threads (default: torch's)")
+    parser.add_argument("--workers", type=int, help="processes drawing storyboards (default: the config's)")
     args = parser.parse_args(argv)
     if not args.synth and not args.real:
         parser.error("give at least one --synth or --real directory")
@@ -297,6 +298,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     config.seed = args.seed
     config.steps = args.steps if args.steps is not None else config.steps
     config.views = args.views if args.views is not None else config.views
+    config.workers = args.workers if args.workers is not None else config.workers
     train_files, val_files = [], []
     for synth_dir in args.synth:
         splits = split_files(synth_dir=synth_dir)

@@ -70,16 +70,16 @@ class SamplerConfig:
 
 
 class Bundle(Protocol):
-    """What the sampler needs from engine.models.bundle.ModelBundle."""
+    """What the sampler reads of engine.models.bundle.ModelBundle."""
+    config: object                  # ModelConfig: .vqvae.latent_dim, .vqvae.time_factor
+    metadata: dict                  # "stages": the training stages its weights went through
     vqvae: torch.nn.Module          # .decode(z), .decode_lowres(z)
     conditioner: torch.nn.Module    # .encode(controls, t_lat, v) -> SketchEncoding
     latent_head: torch.nn.Module    # f_gamma
     student: torch.nn.Module        # RectifiedFlowStudent
     teacher: torch.nn.Module        # DiffusionTeacher
     planner: torch.nn.Module        # PhasePlanner
-    surrogate: torch.nn.Module | None   # JacobianSurrogate, None when untrained
-    latent_dim: int
-    frames_per_latent: int
+    surrogate: torch.nn.Module      # JacobianSurrogate
 
 
 def sample(bundle: Bundle, storyboard: Storyboard,
@@ -109,7 +109,10 @@ class _Run:
         self.first_step: float | None = None
         self.evals = 0
         k = cfg.variations
-        stride = bundle.frames_per_latent
+        stride = bundle.config.vqvae.time_factor
+        self.latent_dim = bundle.config.vqvae.latent_dim
+        # An untrained surrogate routes garbage: fall back to exact gradients through the decoder.
+        self.surrogate = bundle.surrogate if "surrogate" in bundle.metadata.get("stages", ()) else None
         self.frames = sb.length
         self.padded = -(-sb.length // stride) * stride     # the decoder makes multiples of stride
         self.t_lat = self.padded // stride
@@ -171,17 +174,17 @@ class _Run:
         energy, grad = z0.new_zeros(z0.shape[0]), torch.zeros_like(z0)
         with torch.enable_grad():
             if cfg.use_energy:
-                zg = z0.detach().requires_grad_(bundle.surrogate is None)
+                zg = z0.detach().requires_grad_(self.surrogate is None)
                 motion = self._decode(zg)
-                if bundle.surrogate is not None:   # stop at the motion, route through B_rho
+                if self.surrogate is not None:   # stop at the motion, route through B_rho
                     motion = {k: v.detach().requires_grad_(True) for k, v in motion.items()}
                 total, terms = total_energy(self._storyboard_view(motion), self.energy_ctx, t,
                                             self.weights, self.enabled)
-                if bundle.surrogate is None:
+                if self.surrogate is None:
                     grad = grad + torch.autograd.grad(total.sum(), zg)[0]
                 else:
                     raw = torch.autograd.grad(total.sum(), list(motion.values()), allow_unused=True)
-                    grad = grad + bundle.surrogate({k: torch.zeros_like(v) if g is None else g
+                    grad = grad + self.surrogate({k: torch.zeros_like(v) if g is None else g
                                                     for (k, v), g in zip(motion.items(), raw)})
                 energy = energy + total.detach()
                 values.update({k: float(v.detach().mean()) for k, v in terms.items()})
@@ -191,7 +194,7 @@ class _Run:
                 e_lat = cfg.latent_weight * latent_energy(bundle.latent_head, zl, self.s2d, self.present)
                 grad = grad + torch.autograd.grad(e_lat.sum(), zl)[0]
                 energy = energy + e_lat.detach()
-                values["latent"] = float(e_lat.mean())
+                values["latent"] = float(e_lat.detach().mean())
         values["total"] = float(energy.mean())
         return energy, grad
 
@@ -248,7 +251,7 @@ class _Run:
 
     def student(self) -> Generator[StepEvent, None, GenerationResult]:
         cfg, b = self.cfg, self.bundle
-        shape = (cfg.variations, self.t_lat, 3, b.latent_dim)
+        shape = (cfg.variations, self.t_lat, 3, self.latent_dim)
         z = torch.randn(shape, generator=self.generator)
         ts = torch.linspace(1.0, 0.0, cfg.steps + 1).tolist()
         entity_pos = None
@@ -299,7 +302,7 @@ class _Run:
     def teacher(self) -> Generator[StepEvent, None, GenerationResult]:
         from ..models.teacher import ClassifierFreeGuidance, ddim_sample, ddpm_sample
         cfg, b = self.cfg, self.bundle
-        shape = (cfg.variations, self.t_lat, 3, b.latent_dim)
+        shape = (cfg.variations, self.t_lat, 3, self.latent_dim)
 
         def counted(z, tau, cond, pos):
             self.evals += 1

@@ -1,0 +1,111 @@
+"""The guided streaming sampler on a small untrained bundle: streaming, determinism,
+cancellation, variations, methods, guidance that works, and odd storyboards."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from engine.models.bundle import ModelConfig, untrained_bundle
+from engine.models.teacher import VPSchedule
+from engine.sampling.sampler import SamplerConfig, SamplerError, sample
+from engine.storyboard import Agent, Storyboard
+from engine.metrics import adherence
+
+EXAMPLE = "resources/examples/box_handoff.json"
+
+
+@pytest.fixture(scope="module")
+def bundle():
+    torch.set_num_threads(1)
+    return untrained_bundle(replace(ModelConfig.default(), schedule=VPSchedule(steps=12)))
+
+
+@pytest.fixture(scope="module")
+def storyboard():
+    return Storyboard.load(EXAMPLE)
+
+
+def drain(gen):
+    events = []
+    try:
+        while True:
+            events.append(next(gen))
+    except StopIteration as stop:
+        return events, stop.value
+
+
+def test_streams_one_event_per_step_then_the_result(bundle, storyboard):
+    events, result = drain(sample(bundle, storyboard, SamplerConfig(steps=4)))
+    assert [e.step for e in events] == [0, 1, 2, 3] and all(e.num_steps == 4 for e in events)
+    assert [e.t for e in events] == sorted((e.t for e in events), reverse=True) and events[-1].t == 0.0
+    for e in events:
+        assert e.preview.joints.shape == (120, 2, 22, 3) and e.preview.obj_pose.shape == (120, 1, 7)
+        assert np.allclose(e.phase.sum(-1), 1.0, atol=1e-5) and e.phase.shape == (120, 3)
+        assert "total" in e.energies
+    clip = result.clips[0]
+    assert np.isfinite(clip.joints).all() and clip.contact.shape == (120, 2, 2)
+    assert result.network_evals == 8 and result.first_step_s <= result.wall_time_s
+
+
+def test_same_seed_same_motion_other_seed_other(bundle, storyboard):
+    a = drain(sample(bundle, storyboard, SamplerConfig(steps=2, seed=3)))[1].clips[0]
+    b = drain(sample(bundle, storyboard, SamplerConfig(steps=2, seed=3)))[1].clips[0]
+    c = drain(sample(bundle, storyboard, SamplerConfig(steps=2, seed=4)))[1].clips[0]
+    assert np.array_equal(a.joints, b.joints) and not np.allclose(a.joints, c.joints)
+
+
+def test_closing_cancels_between_steps(bundle, storyboard):
+    gen = sample(bundle, storyboard, SamplerConfig(steps=10))
+    first = next(gen)
+    gen.close()
+    assert first.step == 0
+    with pytest.raises(StopIteration):
+        next(gen)
+
+
+def test_variations_are_one_batch_of_different_samples(bundle, storyboard):
+    events, result = drain(sample(bundle, storyboard, SamplerConfig(steps=2, variations=3)))
+    assert events[0].latent.shape[0] == 3 and len(result.clips) == 3
+    assert not np.allclose(result.clips[0].joints, result.clips[1].joints)
+
+
+def test_energy_guidance_pulls_motion_towards_the_sketch(bundle, storyboard):
+    """Even an untrained prior must end closer to the keyposes and paths when guided."""
+    free = drain(sample(bundle, storyboard, SamplerConfig(steps=4, use_energy=False, use_latent=False)))[1]
+    guided = drain(sample(bundle, storyboard, SamplerConfig(steps=4)))[1]
+    before, after = adherence(free.clips[0], storyboard), adherence(guided.clips[0], storyboard)
+    assert after["K2D"] < 0.9 * before["K2D"] and after["T2D"] < 0.9 * before["T2D"]
+
+
+@pytest.mark.parametrize("method,steps", [("teacher-ddim", 3), ("teacher-ddpm", 0)])
+def test_teacher_methods_stream_the_same_way(bundle, storyboard, method, steps):
+    events, result = drain(sample(bundle, storyboard, SamplerConfig(method=method, steps=max(steps, 1))))
+    assert len(events) == (steps or 12) and np.isfinite(result.clips[0].joints).all()
+
+
+def test_ablations_run(bundle, storyboard):
+    for cfg in (SamplerConfig(steps=2, use_ctmc=False), SamplerConfig(steps=2, use_temporal_bias=False),
+                SamplerConfig(steps=2, trajectory_only=True), SamplerConfig(steps=2, langevin_steps=3)):
+        _, result = drain(sample(bundle, storyboard, cfg))
+        assert np.isfinite(result.clips[0].joints).all()
+
+
+def test_one_person_no_object_odd_length(bundle, storyboard):
+    sb = replace(storyboard, length=61, agents=storyboard.agents[:1], objects=[], object_keys=[],
+                 object_paths=[], contacts=[],
+                 keyposes=[k for k in storyboard.keyposes if k.agent == "A" and k.frame < 61],
+                 trajectories=[replace(t, end=min(t.end, 60)) for t in storyboard.trajectories
+                               if t.agent == "A" and t.start < 61])
+    sb.validate()
+    _, result = drain(sample(bundle, sb, SamplerConfig(steps=2)))
+    clip = result.clips[0]
+    assert clip.joints.shape == (61, 1, 22, 3) and clip.obj_pose is None
+
+
+def test_requests_it_cannot_serve_fail_clearly(bundle, storyboard):
+    three = replace(storyboard, agents=storyboard.agents + [Agent("C")])
+    with pytest.raises(SamplerError, match="at most 2 people"):
+        next(sample(bundle, three, SamplerConfig()))
+    with pytest.raises(SamplerError, match="unknown method"):
+        next(sample(bundle, storyboard, SamplerConfig(method="magic")))
