@@ -16,6 +16,8 @@ from PySide6.QtGui import QAction, QActionGroup, QKeySequence
 from PySide6.QtWidgets import (QDockWidget, QFileDialog, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
                                QProgressBar, QSizePolicy, QToolButton, QVBoxLayout, QWidget)
 
+from engine.clip import MotionClip
+from engine.export import export_gltf, export_npz, export_object_path
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard, StoryboardError
 
@@ -23,6 +25,7 @@ from . import commands as cmd
 from .autosave import Autosaver, find_recovery
 from .canvas import SketchCanvas
 from .document import TOOLS, Document, new_storyboard
+from .examples import list_examples
 from .generation import GenerationSettings, StepStream, start_generation
 from .phase_strip import PhaseStrip, phase_legend_html
 from .playback import Playback
@@ -42,7 +45,7 @@ TOOL_TIPS = {"select": "Select and move joints and objects",
              "object": "Drag a rectangle (or draw a lasso) for the object at the playhead",
              "contact": "Click a hand, then an object anchor or another hand",
              "erase": "Click a joint, path, contact or object to remove it"}
-NOT_YET = "Needs an engine function that is not in this build yet"
+NO_MOTION = "There is no generated motion to export yet: generate first (Ctrl+Enter)."
 
 
 class MainWindow(QMainWindow):
@@ -95,7 +98,10 @@ class MainWindow(QMainWindow):
         self.act_save_as = a("Save &As\u2026", self.save_as, QKeySequence("Ctrl+Shift+S"))
         self.act_export_npz = a("Export Motion (NPZ)\u2026", self.export_npz, tip="Save the generated motion")
         self.act_export_bvh = a("Export Motion (BVH)\u2026", self.export_bvh, tip="One BVH file per person")
-        self.act_export_gltf = a("Export Scene (glTF)\u2026", None, tip=NOT_YET, enabled=False)
+        self.act_export_gltf = a("Export Scene (glTF)\u2026", self.export_gltf,
+                                 tip="Animated people and objects as one .glb for Blender and other tools")
+        self.act_export_object_path = a("Export Object Path (CSV)\u2026", self.export_object_path,
+                                        tip="Each object's position, rotation and grip points per frame")
         self.act_export_png = a("Export 3D View (PNG)\u2026", self.export_png)
         self.act_import_bvh = a("Import Reference Motion (BVH)\u2026", self.import_bvh,
                                 tip="Show real motion under the sketch (one BVH file per person)")
@@ -182,10 +188,17 @@ class MainWindow(QMainWindow):
         files.setToolTipsVisible(True)
         files.addActions([self.act_new, self.act_open])
         self.recent_menu = files.addMenu("Open &Recent")
+        self.examples_menu = files.addMenu("Open E&xample")
+        self.examples_menu.setToolTipsVisible(True)
+        for example in list_examples():
+            action = self.examples_menu.addAction(example.label, lambda p=example.path: self.open_example(p))
+            action.setToolTip(example.path.name)
+        self.examples_menu.setEnabled(not self.examples_menu.isEmpty())
         files.addSeparator()
         files.addActions([self.act_save, self.act_save_as])
         files.addSeparator()
-        files.addActions([self.act_export_npz, self.act_export_bvh, self.act_export_gltf, self.act_export_png])
+        files.addActions([self.act_export_npz, self.act_export_bvh, self.act_export_gltf,
+                          self.act_export_object_path, self.act_export_png])
         files.addSeparator()
         files.addActions([self.act_import_bvh, self.act_trace])
         files.addSeparator()
@@ -317,6 +330,21 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(f"Opened {path}", 5000)
         return True
 
+    def open_example(self, path: Path) -> bool:
+        """Open a shipped example as a new, untitled storyboard: Save then asks where, so the
+        example itself is never overwritten."""
+        if not self.maybe_save():
+            return False
+        try:
+            storyboard = Storyboard.load(path)
+        except StoryboardError as e:
+            self.error(f"Cannot open the example {Path(path).name}: {e}")
+            return False
+        self.doc.replace_storyboard(storyboard, None)
+        self.statusBar().showMessage(f"Opened the example \u201c{storyboard.text or Path(path).stem}\u201d; "
+                                     "Ctrl+Enter generates.", 8000)
+        return True
+
     def save(self) -> bool:
         return self.save_to(self.doc.path) if self.doc.path else self.save_as()
 
@@ -356,37 +384,50 @@ class MainWindow(QMainWindow):
             self.recent_menu.addAction(Path(f).name, lambda f=f: self.open_file(f)).setToolTip(f)
         self.recent_menu.setEnabled(bool(self.recent_files()))
 
-    def export_npz(self) -> None:
+    def _export_motion(self, title: str, file_filter: str, suffix: str,
+                       write: Callable[[MotionClip, Path], Path | list[Path]]) -> bool:
+        """Ask for a file and write the generated motion there with `write(clip, path)`, which
+        returns the file or files it wrote."""
         clip = self.doc.clip
         if clip is None:
-            self.error("There is no generated motion to export yet: generate first (Ctrl+Enter).")
-            return
-        path, _ = QFileDialog.getSaveFileName(self, "Export Motion", self._last_dir(), "Motion clips (*.npz)")
-        if path:
-            try:
-                clip.save(path)
-            except OSError as e:
-                self.error(f"Cannot export {Path(path).name}: {e}")
-
-    def export_bvh(self) -> None:
-        from engine.io import write_bvh
-        clip = self.doc.clip
-        if clip is None:
-            self.error("There is no generated motion to export yet: generate first (Ctrl+Enter).")
-            return
-        path, _ = QFileDialog.getSaveFileName(self, "Export Motion as BVH", self._last_dir(), "BVH (*.bvh)")
-        if not path:
-            return
-        agents = self.doc.storyboard.agents
-        stem = Path(path).with_suffix("")
+            self.error(NO_MOTION)
+            return False
+        chosen, _ = QFileDialog.getSaveFileName(self, title, self._last_dir(), file_filter)
+        if not chosen:
+            return False
+        path = Path(chosen) if Path(chosen).suffix else Path(chosen).with_suffix(suffix)
         try:
-            for h in range(clip.num_humans):
-                name = agents[h].id if h < len(agents) else str(h)
-                write_bvh(clip, h, f"{stem}_{name}.bvh")
-        except (OSError, ValueError) as e:
-            self.error(f"Cannot export BVH: {e}")
-            return
-        self.statusBar().showMessage(f"Exported {clip.num_humans} BVH files next to {stem}", 5000)
+            written = write(clip, path)
+        except Exception as e:  # any exporter failure (disk, a clip it cannot take) is a dialog
+            self.error(f"Cannot export {path.name}: {str(e).splitlines()[0] if str(e) else type(e).__name__}")
+            return False
+        names = ", ".join(p.name for p in (written if isinstance(written, list) else [written]))
+        self.statusBar().showMessage(f"Exported {names} to {path.parent}", 8000)
+        return True
+
+    def export_npz(self) -> bool:
+        return self._export_motion("Export Motion", "Motion clips (*.npz)", ".npz", export_npz)
+
+    def export_bvh(self) -> bool:
+        return self._export_motion("Export Motion as BVH (one file per person)", "BVH (*.bvh)", ".bvh",
+                                   self._write_bvh_per_person)
+
+    def export_gltf(self) -> bool:
+        return self._export_motion("Export Scene as glTF", "glTF binary (*.glb)", ".glb", export_gltf)
+
+    def export_object_path(self) -> bool:
+        return self._export_motion("Export Object Path", "CSV (*.csv)", ".csv", export_object_path)
+
+    def _write_bvh_per_person(self, clip: MotionClip, path: Path) -> list[Path]:
+        """`<stem>_<agent id>.bvh` per person, named after the storyboard's agents."""
+        from engine.io import write_bvh
+        agents = self.doc.storyboard.agents
+        written = []
+        for h in range(clip.num_humans):
+            name = agents[h].id if h < len(agents) else str(h)
+            written.append(path.with_name(f"{path.stem}_{name}.bvh"))
+            write_bvh(clip, h, written[-1])
+        return written
 
     def import_bvh(self) -> None:
         from engine.io import import_bvh

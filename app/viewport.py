@@ -2,13 +2,17 @@
 
 No QOpenGLWidget (DESIGN section 5): the renderer draws with the process's one standalone EGL
 context into its own framebuffer, and this widget paints the pixels. It re-renders only when
-something it shows changed (clip, frame, camera, size, storyboard), on the next paint.
+something it shows changed (clip, frame, camera, size, storyboard), on the next paint: however
+many previews stream in between two paints, only the newest is drawn.
+The renderer is built and its shaders compiled just after the first paint (warm_up), so the
+second of shader compiling falls at start-up, not on a generation's first preview.
 
 Public API (everything else is private):
     Viewport(parent=None, config: RenderConfig | None = None)
     set_clip(clip: MotionClip | None)      show a motion; frames the camera on it; frame 0
     set_preview(clip: MotionClip)          slot for streamed previews: same, but keeps the frame
                                            and the camera
+    warm_up()                              build the renderer and compile its shaders now
     set_storyboard(sb: Storyboard | None)  keyframe ghosts and target paths come from it
     set_frame(frame: int)                  clamped to the clip; emits frameChanged when it moves
     frame -> int, num_frames -> int
@@ -48,6 +52,7 @@ class Viewport(QWidget):
         self._speed = 1.0
         self._config = config
         self._renderer: SceneRenderer | None = None
+        self._warm = False
         self._error = ""
         self._clip: MotionClip | None = None
         self._storyboard: Storyboard | None = None
@@ -160,10 +165,23 @@ class Viewport(QWidget):
         """Save the widget as it looks now (the 3D image and its overlay text)."""
         return self.grab().save(str(path), "PNG")
 
+    def warm_up(self) -> None:
+        """Build the renderer and let it compile every shader now (about a second of software GL
+        the first time in a process). Does nothing once done."""
+        if self._warm:
+            return
+        self._warm = True
+        renderer = self._ensure_renderer()
+        if renderer is not None:
+            renderer.warm_up()
+            self.update_view()  # the warm-up drew its own scene into the image we show
+
     def paintEvent(self, event) -> None:
         painter = QPainter(self)
         if self._dirty:
             self._render()
+        if not self._warm:
+            QTimer.singleShot(0, self, self.warm_up)  # once this first picture is on screen
         if self._image is None:
             painter.fillRect(self.rect(), QColor("#dfe3e8"))
             painter.drawText(self.rect(), Qt.AlignCenter | Qt.TextWordWrap, self._error or "3D view")
@@ -175,13 +193,24 @@ class Viewport(QWidget):
                              f"frame {self._frame} / {self.num_frames - 1}")
         painter.end()
 
-    def _render(self) -> None:
-        self._dirty = False
+    def _ensure_renderer(self) -> SceneRenderer | None:
+        """The renderer at the widget's size; None (and the reason in _error) without OpenGL."""
         w, h = max(1, self.width()), max(1, self.height())
         try:
             if self._renderer is None:
                 self._renderer = SceneRenderer(w, h, self._config)
             self._renderer.resize(w, h)
+        except RenderUnavailableError as e:
+            self._error, self._image = str(e), None
+            return None
+        return self._renderer
+
+    def _render(self) -> None:
+        self._dirty = False
+        w, h = max(1, self.width()), max(1, self.height())
+        if self._ensure_renderer() is None:
+            return
+        try:
             pixels = self._renderer.render(scene_from_clip(self._clip, self._frame, self._storyboard), self.camera)
         except RenderUnavailableError as e:
             self._error, self._image = str(e), None

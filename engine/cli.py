@@ -73,9 +73,21 @@ def cmd_synth(args) -> int:
 def cmd_train(args) -> int:
     from .training.command import TrainError, train_command
     try:
-        train_command(args.stage, args.config, args.data, args.real, args.steps, args.resume, args.runs)
+        train_command(args.stage, args.config, args.data, args.real, args.steps, args.resume, args.runs,
+                      args.threads)
     except TrainError as e:
         raise UserError(str(e)) from None
+    return 0
+
+
+def cmd_bundle(args) -> int:
+    import json
+    import shlex
+
+    from .training.card import export_default
+    card = export_default(args.runs, args.output, args.data or [], args.real or [], args.config,
+                          command=args.command or "sketch2colab " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    print(json.dumps({k: card[k] for k in ("bundle", "size_mb", "load_s", "stages", "held_out")}, indent=1))
     return 0
 
 
@@ -166,7 +178,17 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--steps", type=int, help="steps per stage (overrides the config)")
     s.add_argument("--resume", action="store_true", help="continue from runs/STAGE/checkpoint.pt")
     s.add_argument("--runs", default="runs", help="output root (default runs/)")
+    s.add_argument("--threads", type=int, help="torch CPU threads (default: the config's)")
     s.set_defaults(func=cmd_train)
+
+    s = sub.add_parser("bundle", help="collect trained stages into a model bundle with its model card")
+    s.add_argument("--runs", default="runs", help="training output root (default runs/)")
+    s.add_argument("-o", "--output", default="resources/models/default.pt")
+    s.add_argument("--data", nargs="+", metavar="DIR", help="synthesized clip folders (their test split is measured)")
+    s.add_argument("--real", nargs="+", metavar="DIR", help="imported capture folders (held-out takes are measured)")
+    s.add_argument("--config", choices=["default", "large"], default="default")
+    s.add_argument("--command", help="the training command to record in the model card")
+    s.set_defaults(func=cmd_bundle)
 
     s = sub.add_parser("generate", help="generate motion for a storyboard")
     s.add_argument("storyboard")

@@ -48,7 +48,8 @@ def scene(rng, n=120, fps=20.0, with_object=True):
         pose[:, 0, 3], pose[:, 0, 5] = np.cos(heading / 2), np.sin(heading / 2)
         wrists = joints[:, :, [JOINT_INDEX["r_wrist"], JOINT_INDEX["l_wrist"]]][:, [0, 1], [0, 1]]
         anchors = wrists[:, np.arange(NUM_ANCHORS) % 2][:, None]                    # (n, 1, K, 3)
-        kw = dict(obj_pose=pose, obj_anchors=anchors, obj_type=np.array(["box"]), obj_size=np.array([[0.45, 0.35, 0.35]]))
+        kw = dict(obj_pose=pose, obj_anchors=anchors, obj_type=np.array(["box"]),
+                  obj_size=np.array([[0.45, 0.35, 0.35]]))
     return MotionClip(fps=fps, joints=joints, rot6d=matrix_to_6d(rot), **kw)
 
 
@@ -119,9 +120,9 @@ def test_motion_embedding_ignores_a_global_yaw_and_shift(scenes):
 
 def cache_of(clips, boards, fps=20.0):
     motion, story = motion_batch(clips, fps), story_batch(boards)
+    features = motion_features(motion["joints"], motion["obj_pose"], motion["obj_present"], motion["valid"], fps)
     return FeatureCache(
-        motion=motion_features(motion["joints"], motion["obj_pose"], motion["obj_present"], motion["valid"], fps).half(),
-        story=story_features(story, story["valid"]).half()[None], valid=motion["valid"],
+        motion=features.half(), story=story_features(story, story["valid"]).half()[None], valid=motion["valid"],
         clip=torch.arange(len(clips)), start=torch.zeros(len(clips), dtype=torch.int64))
 
 

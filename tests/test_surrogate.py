@@ -3,6 +3,8 @@ fit against exact autograd VJPs of small fake decoders."""
 import numpy as np
 import torch
 
+from engine.objects import NUM_ANCHORS
+
 from engine.models.surrogate import (DEFAULT_LAYOUT, JacobianSurrogate, SurrogateConfig, exact_latent_gradient,
                                      fit_surrogate, flatten_motion, gradient_cosine, init_from_jacobians,
                                      random_cotangents, surrogate_loss, unflatten_motion)
@@ -31,7 +33,7 @@ def small_surrogate(rank: int = V * D_LAT) -> JacobianSurrogate:
 def test_flattening_matches_scene_layout():
     g = torch.Generator().manual_seed(0)
     motion = {"joints": torch.randn(2, 5, 2, 22, 3, generator=g), "rot6d": torch.randn(2, 5, 2, 22, 6, generator=g),
-              "obj_pose": torch.randn(2, 5, 1, 7, generator=g), "obj_anchors": torch.randn(2, 5, 1, 2, 3, generator=g)}
+              "obj_pose": torch.randn(2, 5, 1, 7, generator=g), "obj_anchors": torch.randn(2, 5, 1, NUM_ANCHORS, 3, generator=g)}
     flat = flatten_motion(motion)
     assert flat.shape == (2, 5, DEFAULT_LAYOUT.dim)
     ref = DEFAULT_LAYOUT.flatten(motion["joints"][0].numpy(), motion["rot6d"][0].numpy(),

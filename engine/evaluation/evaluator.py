@@ -16,8 +16,9 @@ sequence of Controls or Storyboard, or a dict of batched Controls fields with on
   fid(evaluator, generated, reference) -> float
   r_precision_top3(evaluator, controls, generated) -> float   (batches of 32)
   embedding_diversity(evaluator, motions) -> float
-FID on unit embeddings is small in absolute terms (at most 4 for the mean term); compare it
-only between runs of one evaluator version.
+Give it windows of `config.window` frames (what it was trained on); shorter ones are padded and
+masked, longer ones are read whole. FID on unit embeddings is small in absolute terms (at most
+4 for the mean term); compare it only between runs of one evaluator version.
 """
 from __future__ import annotations
 
@@ -164,7 +165,9 @@ def motion_batch(motions: Sequence[MotionClip] | dict[str, Any], fps: float = 20
         obj_pose = torch.as_tensor(motions["obj_pose"]).float()
         b, n = joints.shape[:2]
         present = motions.get("obj_present")
-        present = (obj_pose.abs().flatten(1).sum(1) > 0).float() if present is None else torch.as_tensor(present).float()
+        if present is None:
+            present = obj_pose.abs().flatten(1).sum(1) > 0
+        present = torch.as_tensor(present).float()
         valid = motions.get("valid")
         valid = torch.ones(b, n) if valid is None else torch.as_tensor(valid).float()
         batch = {"joints": joints, "obj_pose": obj_pose, "obj_present": present, "valid": valid}

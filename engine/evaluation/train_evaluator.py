@@ -74,6 +74,11 @@ class FeatureCache:
     def __len__(self) -> int:
         return len(self.motion)
 
+    def subset(self, index: torch.Tensor, views: int = 1) -> "FeatureCache":
+        """The windows at `index` with their first `views` storyboard views."""
+        return FeatureCache(self.motion[index], self.story[:views, index], self.valid[index], self.clip[index],
+                            self.start[index])
+
 
 def build_cache(files: Sequence[Path], model: EvaluatorConfig, views: int, seed: int,
                 workers: int = 0, chunk: int = 64) -> FeatureCache:
@@ -97,11 +102,13 @@ def build_cache(files: Sequence[Path], model: EvaluatorConfig, views: int, seed:
                         windows[:, 0].clone(), windows[:, 1].clone())
 
 
-def standardise(evaluator: MotionEvaluator, cache: FeatureCache) -> None:
-    """Set both encoders' feature mean and std from the valid frames of the cache."""
-    mask = cache.valid.bool()
-    for encoder, feats in ((evaluator.motion_encoder, cache.motion[mask]),
-                           (evaluator.story_encoder, cache.story[:, mask].flatten(0, 1))):
+def standardise(evaluator: MotionEvaluator, cache: FeatureCache, windows: int = 4096, seed: int = 0) -> None:
+    """Set both encoders' feature mean and std from the valid frames of a random subset of the
+    cache's windows (view 0 for storyboards): all of a large cache would not fit in float32."""
+    subset = torch.randperm(len(cache), generator=torch.Generator().manual_seed(seed))[:windows]
+    mask = cache.valid[subset].bool()
+    for encoder, feats in ((evaluator.motion_encoder, cache.motion[subset][mask]),
+                           (evaluator.story_encoder, cache.story[0, subset][mask])):
         feats = feats.float()
         encoder.feature_mean.copy_(feats.mean(0))
         encoder.feature_std.copy_(feats.std(0).clamp_min(STD_FLOOR))
@@ -139,7 +146,7 @@ def fit(evaluator: MotionEvaluator, train: FeatureCache, config: TrainConfig,
     random views. Returns the training loss per step."""
     device = next(evaluator.parameters()).device
     torch.manual_seed(config.seed)
-    standardise(evaluator, train)
+    standardise(evaluator, train, seed=config.seed)
     evaluator.train()
     optimiser = torch.optim.AdamW(evaluator.parameters(), lr=config.lr, weight_decay=config.weight_decay)
 
@@ -236,7 +243,7 @@ def write_model_card(path: Path, card: dict, train_files: Sequence[Path], val_fi
         f"| val | {v['infonce']:.3f} | {v['r_precision_top3']:.3f} | {v['fid_halves']:.4f} |", "",
         f"Chance R-precision top-3 is {chance:.3f}. The halves FID is the floor a generator matching "
         "the real distribution would reach with this many motions; train figures are measured on the "
-        "first storyboard view of at most 2048 training windows.", "",
+        "first storyboard view of at most 2048 random training windows.", "",
         "## Files", "", "Train:", *[f"- {p}" for p in train_files], "", "Val:", *[f"- {p}" for p in val_files], ""]
     path.with_suffix(".md").write_text("\n".join(lines))
 
@@ -257,15 +264,14 @@ def train_evaluator(train_files: Sequence[Path], val_files: Sequence[Path], out:
     log(f"{len(train)} train windows, {len(val) if val else 0} val windows, "
         f"{evaluator.num_parameters():,} parameters, {time.time() - began:.0f} s")
     fit(evaluator, train, config, log)
-    train_subset = FeatureCache(train.motion[:2048], train.story[:1, :2048], train.valid[:2048],
-                                train.clip[:2048], train.start[:2048])
-    nan = {"infonce": float("nan"), "r_precision_top3": float("nan"), "fid_halves": float("nan"), "windows": 0}
+    measured = torch.randperm(len(train), generator=torch.Generator().manual_seed(config.seed))[:2048]
+    train_figures = {**evaluate(evaluator, train.subset(measured), config), "windows": len(train)}
+    no_val = {"infonce": float("nan"), "r_precision_top3": float("nan"), "fid_halves": float("nan"), "windows": 0}
     card = {"command": command, "git_commit": git_commit(), "seed": config.seed, "config": config_name,
             "train_config": asdict(config), "parameters": evaluator.num_parameters(), "views": config.views,
             "data_dirs": list(data_dirs), "data_sha256": _digest([*train_files, *val_files]),
             "device": str(device), "threads": torch.get_num_threads(),
-            "train": evaluate(evaluator, train_subset, config), "val": evaluate(evaluator, val, config) if val else nan}
-    card["train"]["windows"] = len(train)
+            "train": train_figures, "val": evaluate(evaluator, val, config) if val else no_val}
     card["wall_s"] = time.time() - began
     evaluator.card = card
     save_evaluator(evaluator, out)
@@ -278,7 +284,8 @@ def train_evaluator(train_files: Sequence[Path], val_files: Sequence[Path], out:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m engine.evaluation.train_evaluator", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m engine.evaluation.train_evaluator",
+                                     description=__doc__.split("\n")[0])
     parser.add_argument("--synth", action="append", default=[], help="directory of synthesized clips (repeatable)")
     parser.add_argument("--real", action="append", default=[], help="directory of imported real clips (repeatable)")
     parser.add_argument("--out", default=str(REPO_ROOT / "resources" / "evaluator.pt"))

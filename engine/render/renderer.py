@@ -22,8 +22,9 @@ from ..rotations import quat_to_matrix
 from .bodies import HAND_RADIUS, body_instances, hand_centres
 from .camera import OrbitCamera
 from .context import load_program, shared_context
+from .example import carry_clip, carry_storyboard
 from .meshes import object_triangles, ribbon_quad, unit_quad, unit_ring
-from .scene import Polyline, SceneState
+from .scene import Polyline, SceneState, scene_from_clip
 
 Y_FLIP = np.diag([1.0, -1.0, 1.0, 1.0]).astype(np.float32)
 CAPSULE_FORMAT, CAPSULE_ATTRS = "3f 3f 2f 4f", ("i_a", "i_b", "i_radius", "i_color")
@@ -174,6 +175,14 @@ class SceneRenderer:
         return fbo
 
     # ---- drawing ---------------------------------------------------------------------------
+    def warm_up(self) -> None:
+        """Draw the built-in example scene once (bodies, object, ghosts, paths, glows, shadow).
+        Software GL compiles each shader at its first draw, about a second on two cores; doing
+        it here keeps that off the first frame a person waits for. Mesa keeps the compiled
+        shaders for the whole process, so later renderers start warm too."""
+        clip = carry_clip(4)
+        self.render(scene_from_clip(clip, 1, carry_storyboard(clip)))
+
     def render(self, scene: SceneState, camera: OrbitCamera | None = None) -> np.ndarray:
         """Draw `scene` seen by `camera` (None: framed to fit). Returns the renderer's (H, W, 4)
         uint8 RGBA image, top row first; the next call overwrites it (copy it to keep it)."""

@@ -16,13 +16,15 @@ class TrainError(ValueError):
 
 def train_command(stage: str, config: str = "default", data: list[str] | None = None,
                   real: list[str] | None = None, steps: int | None = None, resume: bool = False,
-                  runs: str = "runs") -> dict:
+                  runs: str = "runs", threads: int | None = None) -> dict:
     from ..dataset import DatasetConfig, StoryboardWindows, split_files
     cfg = CONFIGS[config]()
     if steps is not None:
         if steps < 1:
             raise TrainError(f"--steps must be positive, got {steps}")
         cfg.steps, cfg.stage_steps = steps, {}
+    if threads is not None:
+        cfg.threads = max(1, threads)
     files = []
     for folder in data or []:
         if not Path(folder).is_dir():

@@ -97,7 +97,7 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
     opt = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=cfg.weight_decay)
     ema = EMA(model, cfg.ema_decay)
     torch.manual_seed(cfg.seed * 7919 + rank)
-    start = 0
+    start, elapsed_before = 0, 0.0
     ckpt_path = run_dir / "checkpoint.pt"
     if resume and ckpt_path.exists():
         state = checkpoint.load(ckpt_path)
@@ -106,6 +106,8 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
         ema.load_state_dict(state["ema"])
         torch.set_rng_state(state["rng"][rank] if rank < len(state["rng"]) else state["rng"][0])
         start = int(state["step"])
+        elapsed_before = float(state.get("elapsed_s", 0.0))
+    began = time.monotonic()
 
     def save(step: int) -> None:
         rngs = [torch.get_rng_state()]
@@ -114,7 +116,8 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
             dist.all_gather_object(rngs, torch.get_rng_state())
         if rank == 0:
             checkpoint.save_atomic({"model": model.state_dict(), "optimizer": opt.state_dict(), "ema": ema.state_dict(),
-                                    "step": step, "rng": rngs, "stage": task.name}, ckpt_path)
+                                    "step": step, "rng": rngs, "stage": task.name,
+                                    "elapsed_s": elapsed_before + time.monotonic() - began}, ckpt_path)
 
     loader = DataLoader(EpochView(dataset), batch_sampler=StepBatches(len(dataset), cfg.batch_size, steps, start,
                                                                        cfg.seed, rank, world),
@@ -145,7 +148,8 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
                 save(step + 1)
                 last_save = time.monotonic()
         save(steps)
-        metrics = {"stage": task.name, "steps": steps, **{k: v.item() for k, v in terms.items()}}
+        metrics = {"stage": task.name, "steps": steps, "wall_time_s": round(elapsed_before + time.monotonic() - began, 1),
+                   **{k: v.item() for k, v in terms.items()}}
         if task.finish is not None:
             metrics.update(task.finish(ema.shadow, dataset))
         if rank == 0:
