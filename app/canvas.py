@@ -22,6 +22,7 @@ from .poses import standing_pose_2d
 from .strokes import clean_stroke, distance_to_polyline, splice
 
 HIT_PX = 9.0            # how close (pixels) a click must be to a joint, stroke or anchor
+FRAME_MARGIN_PX = 40.0  # free border around the sketch when framing it
 PAPER = QColor("#f6f4ef")
 GRID = QColor("#d9d5cc")
 GRID_AXIS = QColor("#bdb7aa")
@@ -59,6 +60,7 @@ class SketchCanvas(QWidget):
                        document.resultChanged, document.referenceChanged, document.spanChanged):
             signal.connect(self.update)
         document.toolChanged.connect(self._on_tool)
+        document.replaced.connect(self.frame_sketch)
         self._on_tool(document.tool)
 
     # ---- coordinates ---------------------------------------------------------------------------
@@ -73,6 +75,28 @@ class SketchCanvas(QWidget):
         px = np.asarray(px, float)
         centre = np.array([self.width() / 2, self.height() / 2])
         return self.pan + (px - centre) / np.array([self.zoom, -self.zoom])
+
+    def frame_sketch(self) -> None:
+        """Zoom and pan so that every keypose, path and object outline is in view (F)."""
+        sb = self._doc.storyboard
+        points = [k.points[k.mask] for k in sb.keyposes] + [t.points for t in sb.trajectories]
+        points += [k.outline for k in sb.object_keys] + [p.points for p in sb.object_paths]
+        points = [np.asarray(p, float).reshape(-1, 2) for p in points]
+        points = np.concatenate(points) if points else np.zeros((0, 2))
+        if len(points) == 0:
+            return
+        lo, hi = points.min(0), points.max(0)
+        # Leave room for labels, joint handles and the frame counter at the top.
+        usable = np.array([self.width() - 2 * FRAME_MARGIN_PX, self.height() - 2 * FRAME_MARGIN_PX - 24])
+        self.zoom = float(np.clip(np.min(np.maximum(usable, 1) / np.maximum(hi - lo, 0.2)), 20.0, 2000.0))
+        self.pan = (lo + hi) / 2 + np.array([0.0, 12.0 / self.zoom])
+        self.update()
+
+    def keyPressEvent(self, event):
+        if event.key() == Qt.Key_F and not event.modifiers():
+            self.frame_sketch()
+        else:
+            super().keyPressEvent(event)
 
     def _hit(self) -> float:
         return HIT_PX / self.zoom

@@ -39,6 +39,7 @@ class Selection:
 
 class Document(QObject):
     storyboardChanged = Signal()   # content edited, undone, redone or replaced
+    replaced = Signal()            # a whole new storyboard (new, open, recover): views reframe
     selectionChanged = Signal()
     toolChanged = Signal(str)
     frameChanged = Signal(int)
@@ -82,6 +83,7 @@ class Document(QObject):
                        self.resultChanged, self.pathChanged):
             signal.emit()
         self.frameChanged.emit(0)
+        self.replaced.emit()
         self._emit_dirty()
 
     def mark_saved(self, path: Path) -> None:

@@ -66,6 +66,7 @@ class MainWindow(QMainWindow):
         self.timeline = Timeline(self.doc)
         self.phase_strip = PhaseStrip(self.doc)
         self.viewport = Viewport()
+        self.viewport.empty_hint = "No motion yet.\nSketch, then press \u25b6 Generate (Ctrl+Enter)."
         self.properties = PropertiesPanel(self.doc)
         self._build_actions()
         self._build_docks()
@@ -135,9 +136,9 @@ class MainWindow(QMainWindow):
         self.act_play = a("Play / Pause", self.playback.toggle, QKeySequence(Qt.Key_Space))
         self.act_next = a("Next Frame", lambda: self.playback.step(1), QKeySequence(Qt.Key_Right))
         self.act_prev = a("Previous Frame", lambda: self.playback.step(-1), QKeySequence(Qt.Key_Left))
-        self.act_generate = a("Generate", self.generate, [QKeySequence("Ctrl+Return"), QKeySequence("Ctrl+Enter")],
+        self.act_generate = a("\u25b6  Generate", self.generate, [QKeySequence("Ctrl+Return"), QKeySequence("Ctrl+Enter")],
                               tip="Generate motion from the storyboard (Ctrl+Enter)")
-        self.act_cancel = a("Cancel", self.runner.cancel, QKeySequence(Qt.Key_Escape),
+        self.act_cancel = a("\u25a0  Cancel", self.runner.cancel, QKeySequence(Qt.Key_Escape),
                             tip="Stop the running generation (Esc)", enabled=False)
         self.act_onion = a("Onion Skin", lambda on: self._set_onion(on), tip="Show the generated motion under the sketch")
         self.act_onion.setCheckable(True)
@@ -235,9 +236,14 @@ class MainWindow(QMainWindow):
         bar.addWidget(spacer)
         bar.addAction(self.act_generate)
         bar.addAction(self.act_cancel)
+        bar.widgetForAction(self.act_generate).setObjectName("generate")  # the primary action stands out
         self.setStyleSheet("QToolBar { spacing: 2px; padding: 2px; }"
                            "QToolBar QToolButton { padding: 4px 9px; }"
-                           "QToolBar QToolButton:checked { background: #2e86ab; color: white; border-radius: 3px; }")
+                           "QToolBar QToolButton:checked { background: #2e86ab; color: white; border-radius: 3px; }"
+                           "QToolButton#generate { background: #3c8d5a; color: white; font-weight: bold;"
+                           " border-radius: 3px; padding: 4px 14px; }"
+                           "QToolButton#generate:hover { background: #347d4f; }"
+                           "QToolButton#generate:disabled { background: #b9c9bd; color: #f4f4f4; }")
 
     def _build_status(self) -> None:
         self.progress = QProgressBar()

@@ -20,6 +20,7 @@ Public API (everything else is private):
     loop: bool (default True), speed: float (playback rate, default 1.0)
     frame_all()                            aim the camera at everything (also the F key)
     camera: OrbitCamera                    change it, then call update_view()
+    empty_hint: str                        shown over the ground while there is no clip
     grab_png(path) -> bool                 save what the widget shows
 Signals: frameChanged(int), playingChanged(bool).
 Mouse: left drag orbits, middle drag or shift + left drag pans, wheel zooms.
@@ -49,6 +50,7 @@ class Viewport(QWidget):
         self.setMinimumSize(160, 120)
         self.camera = OrbitCamera()
         self.loop = True
+        self.empty_hint = ""
         self._speed = 1.0
         self._config = config
         self._renderer: SceneRenderer | None = None
@@ -191,7 +193,21 @@ class Viewport(QWidget):
             painter.setPen(QColor(60, 60, 60))
             painter.drawText(self.rect().adjusted(8, 6, -8, -6), Qt.AlignLeft | Qt.AlignTop,
                              f"frame {self._frame} / {self.num_frames - 1}")
+        elif self.empty_hint and self._image is not None:
+            self._paint_hint(painter)
         painter.end()
+
+    def _paint_hint(self, painter: QPainter) -> None:
+        """The empty-state hint on a soft card near the bottom, clear of the paths drawn mid-view."""
+        area = self.rect().adjusted(16, 0, -16, -18)
+        box = painter.boundingRect(area, Qt.AlignHCenter | Qt.AlignBottom | Qt.TextWordWrap, self.empty_hint)
+        card = box.adjusted(-12, -8, 12, 8)
+        painter.setRenderHint(QPainter.Antialiasing)
+        painter.setPen(Qt.NoPen)
+        painter.setBrush(QColor(255, 255, 255, 200))
+        painter.drawRoundedRect(card, 6, 6)
+        painter.setPen(QColor("#4a463f"))
+        painter.drawText(box, Qt.AlignCenter | Qt.TextWordWrap, self.empty_hint)
 
     def _ensure_renderer(self) -> SceneRenderer | None:
         """The renderer at the widget's size; None (and the reason in _error) without OpenGL."""

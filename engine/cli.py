@@ -211,7 +211,22 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--no-render", action="store_true", help="skip the contact sheets and GIFs")
     s.set_defaults(func=cmd_demo)
+    s = sub.add_parser("bench", help="benchmark every method on held-out storyboards (writes BENCHMARKS.md)")
+    s.add_argument("--quick", action="store_true", help="small subset, under 5 minutes on 2 cores")
+    s.add_argument("-o", "--output", default="BENCHMARKS.md", metavar="BENCHMARKS.md")
+    s.add_argument("--json", metavar="FILE", help="also write every figure as JSON")
+    s.add_argument("--checkpoint", metavar="BUNDLE.pt", help="model bundle (default: the shipped one)")
+    s.set_defaults(func=cmd_bench)
     return p
+
+
+def cmd_bench(args) -> int:
+    from .bench.command import BenchError, bench_command
+    try:
+        bench_command(args.quick, args.output, args.json, args.checkpoint)
+    except BenchError as e:
+        raise UserError(str(e)) from None
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:

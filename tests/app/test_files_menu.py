@@ -3,6 +3,7 @@ as dialogs, and Open Example."""
 import csv
 import struct
 
+import numpy as np
 import pytest
 from PySide6.QtWidgets import QFileDialog
 
@@ -115,3 +116,8 @@ def test_open_example_menu_lists_the_examples_by_their_text(window, dialogs):
     # An untitled copy: saving asks for a place, so the shipped example stays as it is.
     assert window.doc.path is None and not window.doc.dirty
     assert dialogs.errors == []
+    # The canvas frames the whole sketch.
+    sketch = np.concatenate([k.points[k.mask] for k in expected.keyposes] + [t.points for t in expected.trajectories]
+                            + [k.outline for k in expected.object_keys])
+    px = window.canvas.to_px(sketch)
+    assert (px >= 0).all() and (px[:, 0] <= window.canvas.width()).all() and (px[:, 1] <= window.canvas.height()).all()

@@ -54,7 +54,7 @@ def test_undo_redo_and_playback_shortcuts(qtbot, window):
     assert doc.frame == 1
     qtbot.keyClick(window.canvas, Qt.Key_Space)
     assert window.playback.playing
-    qtbot.waitUntil(lambda: doc.frame > 2, timeout=2000)
+    qtbot.waitUntil(lambda: doc.frame > 2, timeout=10000)  # generous: CI machines can be busy
     qtbot.keyClick(window.canvas, Qt.Key_Space)
     assert not window.playback.playing
 

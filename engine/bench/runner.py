@@ -1,0 +1,151 @@
+"""Run the benchmark's methods on a protocol's storyboards and score every sample.
+
+Every method drives a generator with the sampler's streaming contract (engine.sampling.sampler
+or the retrieval baseline), so timing, first-step latency and network evaluations are measured
+the same way for all. Figures per sample come from engine.metrics.adherence (against the held-out
+clip the storyboard was sketched from) plus contact timing against the synthesizer's per-hand
+labels (engine.metrics.contact_f1 / expected_calibration_error / brier_score).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..baselines.retrieval import RetrievalIndex, sample_retrieval
+from ..clip import MotionClip
+from ..generate import run_generation
+from ..metrics import adherence, brier_score, contact_f1, diversity, expected_calibration_error
+from ..sampling.sampler import SamplerConfig, sample
+from ..storyboard import Storyboard
+from ..synth import SCENARIOS, synthesize
+from .protocol import REPO_ROOT, BenchItem, Protocol
+
+RETRIEVAL_LIBRARY_SEEDS = range(100, 160)   # split bucket 100-159: training seeds, never test
+
+
+@dataclass(frozen=True)
+class Method:
+    key: str                            # JSON key
+    label: str                          # table row
+    sampler: SamplerConfig | None       # None: the retrieval baseline
+
+
+OURS = Method("ours", "Ours", SamplerConfig(steps=30))
+TEACHER_DDPM = Method("teacher_ddpm", "COLLAGE Teacher (DDPM-1000)", SamplerConfig(method="teacher-ddpm"))
+TEACHER_DDIM = Method("teacher_ddim", "COLLAGE Teacher (DDIM-50)", SamplerConfig(method="teacher-ddim", steps=50))
+RETRIEV_ADAPT = Method("retrievadapt", "RetrievAdapt", None)
+ABLATIONS = (
+    Method("wo_energy", "w/o Energy", SamplerConfig(steps=30, use_energy=False)),
+    Method("wo_ctmc", "w/o CTMC", SamplerConfig(steps=30, use_ctmc=False)),
+    Method("wo_latent", "w/o latent grounding", SamplerConfig(steps=30, use_latent=False)),
+    Method("wo_temporal_bias", "w/o temporal bias", SamplerConfig(steps=30, use_temporal_bias=False)),
+    Method("trajectory_only", "trajectory-only", SamplerConfig(steps=30, trajectory_only=True)),
+)
+ALL_METHODS = (OURS, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT) + ABLATIONS
+
+
+@dataclass
+class Generation:
+    """One generation: K clips and how long they took. `trace` holds (t, latent (K, T, V, d),
+    energies) per streamed step when asked for (the diagnostics read it)."""
+    clips: list[MotionClip]
+    wall_time_s: float
+    first_step_s: float
+    network_evals: int
+    trace: list[tuple[float, np.ndarray, dict[str, float]]] = field(default_factory=list)
+
+
+@dataclass
+class SampleResult:
+    protocol: str
+    item: str
+    group: str
+    noise: float
+    method: str
+    metrics: dict[str, float]
+    wall_time_s: float
+    network_evals: int
+    clip: MotionClip                    # variation 0 (for FID / R-precision)
+    storyboard: Storyboard
+
+
+@dataclass
+class RunnerConfig:
+    seed: int = 0
+    variations: int = 3                 # variations drawn for the diversity figure ...
+    diversity_items: int = 4            # ... on the first this many items of a protocol
+    ddpm_items: int = 10                # DDPM-1000 is slow: only the first this many items
+    cfg: float | None = None            # guidance weight override (None: each method's default)
+
+
+def build_retrieval_index(data_dir=REPO_ROOT / "data", clips: int = 60) -> tuple[RetrievalIndex, str]:
+    """RetrievAdapt's library: the first `clips` training-split clips of data/synth, or the same
+    scenes synthesized afresh (seeds RETRIEVAL_LIBRARY_SEEDS). Never the test split: the CLI's
+    default library (engine.generate.RetrievalSource, seeds 1000+) overlaps it."""
+    from ..dataset import split_files
+    synth_dir = data_dir / "synth"
+    if synth_dir.is_dir() and any(synth_dir.glob("*.npz")):
+        library = [MotionClip.load(p) for p in split_files(synth_dir).train[:clips]]
+        source = f"{len(library)} training-split clips of data/synth"
+    else:
+        library = [synthesize(SCENARIOS[s % len(SCENARIOS)], s) for s in RETRIEVAL_LIBRARY_SEEDS[:clips]]
+        source = f"{len(library)} scenes synthesized with training seeds {RETRIEVAL_LIBRARY_SEEDS.start}+"
+    return RetrievalIndex.build(library), source
+
+
+def generate(bundle, method: Method, storyboard: Storyboard, seed: int = 0, variations: int = 1,
+             index: RetrievalIndex | None = None, trace: bool = False) -> Generation:
+    """Run `method` on one storyboard. The retrieval baseline draws variations with seeds
+    seed, seed + 1, ... (it makes one clip per call)."""
+    if method.sampler is None:
+        if index is None:
+            raise ValueError("the retrieval baseline needs an index")
+        runs = [run_generation(sample_retrieval(index, storyboard, seed=seed + k), None) for k in range(variations)]
+        return Generation([r.clips[0] for r in runs], sum(r.wall_time_s for r in runs), runs[0].first_step_s, 0)
+    gen = sample(bundle, storyboard, replace(method.sampler, seed=seed, variations=variations))
+    steps = []
+    try:
+        while True:
+            event = next(gen)
+            if trace:
+                steps.append((event.t, event.latent, dict(event.energies)))
+    except StopIteration as stop:
+        result = stop.value
+    return Generation(result.clips, result.wall_time_s, result.first_step_s, result.network_evals, steps)
+
+
+def sample_metrics(clip: MotionClip, item: BenchItem) -> dict[str, float]:
+    """adherence() against the held-out clip, with contact timing scored per hand against the
+    synthesizer's labels (clip.contact probabilities vs reference.contact) where labels exist."""
+    figures = adherence(clip, item.storyboard, item.reference)
+    for key in ("ContactF1", "ECE", "Brier"):          # adherence's are against the storyboard's spans
+        figures.pop(key, None)
+    label = item.reference.contact
+    if label is not None and clip.contact is not None:
+        prob, truth = np.clip(clip.contact, 0.0, 1.0), label > 0.5
+        figures["ContactF1"] = contact_f1(prob > 0.5, truth)
+        figures["ECE"] = expected_calibration_error(prob, truth)
+        figures["Brier"] = brier_score(prob, truth)
+    return figures
+
+
+def run_protocol(bundle, protocol: Protocol, methods: tuple[Method, ...], config: RunnerConfig = RunnerConfig(),
+                 index: RetrievalIndex | None = None, log=None) -> list[SampleResult]:
+    """Every method on every item of the protocol (DDPM on the first `ddpm_items` only)."""
+    results = []
+    for method in methods:
+        items = protocol.items[:config.ddpm_items] if method is TEACHER_DDPM else protocol.items
+        if config.cfg is not None and method.sampler is not None:
+            method = replace(method, sampler=replace(method.sampler, cfg=config.cfg))
+        for n, item in enumerate(items):
+            k = config.variations if n < config.diversity_items else 1
+            g = generate(bundle, method, item.storyboard, config.seed, k, index)
+            figures = sample_metrics(g.clips[0], item)
+            if k > 1:
+                figures["Diversity"] = diversity(np.stack([c.joints for c in g.clips]))
+            results.append(SampleResult(protocol.name, item.id, item.group, item.noise, method.key, figures,
+                                        g.wall_time_s / k, g.network_evals, g.clips[0], item.storyboard))
+            if log:
+                log(f"{protocol.name} {method.label} {item.id} noise {item.noise:g}: {g.wall_time_s:.1f} s")
+    return results

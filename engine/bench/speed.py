@@ -1,0 +1,115 @@
+"""Speed of every method, measured in one process on one machine in one run.
+
+Per method: median wall time per generation over `repeats` runs of a 6 s two-person-and-object
+storyboard, time to the first streamed step, network evaluations, and peak memory: the peak
+resident set size (RSS, /proc/self/statm sampled every 2 ms in a thread) during the generation
+minus the RSS just before it, after glibc's malloc_trim has handed freed heap back to the OS
+(otherwise memory kept from an earlier run hides this one's). A working-set estimate, not an
+exact allocation count. One untimed warm-up generation first pays the one-time costs
+(thread pools, lazy initialisation) so that they land on no method.
+Scaling: wall time at clip lengths 2, 6 and 12 s and for 2 people without vs with the object.
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import statistics
+import threading
+import time
+from dataclasses import dataclass, replace
+
+from ..storyboard import Storyboard
+from .runner import Method, generate
+
+PAGE = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
+LENGTHS_S = (2.0, 6.0, 12.0)
+
+
+@dataclass
+class SpeedConfig:
+    repeats: int = 3
+    ddpm_repeats: int = 3               # DDPM-1000 takes ~30x longer than the others
+    scaling_repeats: int = 1
+    lengths_s: tuple[float, ...] = LENGTHS_S
+
+
+def _trim_heap() -> None:
+    """Return freed heap pages to the OS (glibc only; a no-op elsewhere)."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _rss_bytes() -> int:
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * PAGE
+    except OSError:
+        return 0
+
+
+class PeakRss:
+    """Context manager: .peak_delta is the peak RSS during the block minus the RSS before it (bytes)."""
+
+    def __enter__(self) -> "PeakRss":
+        _trim_heap()
+        self.before = self.peak = _rss_bytes()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, daemon=True)
+        self._thread.start()
+        return self
+
+    def _watch(self) -> None:
+        while not self._stop.wait(0.002):
+            self.peak = max(self.peak, _rss_bytes())
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.peak = max(self.peak, _rss_bytes())
+        self.peak_delta = self.peak - self.before
+
+
+def measure(bundle, method: Method, storyboard: Storyboard, repeats: int, index=None) -> dict[str, float]:
+    """Median wall time, first-step time (s) and peak RSS delta (MiB); network evaluations."""
+    walls, firsts, peaks, evals = [], [], [], 0
+    for r in range(repeats):
+        with PeakRss() as rss:
+            start = time.perf_counter()
+            g = generate(bundle, method, storyboard, seed=r, index=index)
+            walls.append(time.perf_counter() - start)
+        firsts.append(g.first_step_s)
+        peaks.append(rss.peak_delta / 2 ** 20)
+        evals = g.network_evals
+    return {"wall_s": statistics.median(walls), "first_step_s": statistics.median(firsts),
+            "network_evals": evals, "peak_rss_mib": statistics.median(peaks), "repeats": repeats}
+
+
+def without_object(sb: Storyboard) -> Storyboard:
+    """The same storyboard with its objects and object contacts removed (2 people only)."""
+    return replace(sb, objects=[], object_keys=[], object_paths=[],
+                   contacts=[c for c in sb.contacts if c.object is None])
+
+
+def speed_table(bundle, methods: tuple[Method, ...], scaling_methods: tuple[Method, ...],
+                storyboards_by_length: dict[float, Storyboard], config: SpeedConfig = SpeedConfig(),
+                index=None, log=None) -> dict:
+    """{"per_method": {key: measure()}, "length": {key: {seconds: wall}}, "entities": {key: {...}}}.
+    storyboards_by_length must hold 6.0 (the per-method scene) and every config.lengths_s;
+    scaling_methods must be among methods (the entity comparison reuses their 6 s figure)."""
+    base = storyboards_by_length[6.0]
+    generate(bundle, methods[0], base, index=index)          # warm-up, untimed
+    out: dict = {"per_method": {}, "length": {}, "entities": {}}
+    for m in methods:
+        slow = m.sampler is not None and m.sampler.method == "teacher-ddpm"
+        out["per_method"][m.key] = measure(bundle, m, base, config.ddpm_repeats if slow else config.repeats, index)
+        if log:
+            log(f"speed {m.label}: {out['per_method'][m.key]['wall_s']:.2f} s")
+    for m in scaling_methods:
+        out["length"][m.key] = {f"{s:g}": measure(bundle, m, storyboards_by_length[s], config.scaling_repeats,
+                                                  index)["wall_s"] for s in config.lengths_s}
+        out["entities"][m.key] = {
+            "2 people": measure(bundle, m, without_object(base), config.scaling_repeats, index)["wall_s"],
+            "2 people + 1 object": out["per_method"][m.key]["wall_s"]}
+    return out

@@ -1,0 +1,209 @@
+"""The whole benchmark in one call: protocols, methods, scores, targets, speed, diagnostics.
+
+`run_bench(BenchConfig.full())` (about 40-60 min on 2 CPU cores) or `BenchConfig.quick()`
+(under 5 min) returns one JSON-able dict that engine.bench.report renders to Markdown; the
+diagnostic PNGs are written beside the report.
+"""
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import torch
+
+from . import diagnostics, plots
+from .protocol import REPO_ROOT, ProtocolConfig, build_protocols
+from .runner import (ABLATIONS, ALL_METHODS, OURS, RETRIEV_ADAPT, TEACHER_DDIM, TEACHER_DDPM, RunnerConfig,
+                     build_retrieval_index, generate, run_protocol)
+from .scores import by_key, by_method, paired
+from .speed import SpeedConfig, speed_table
+from .targets import check_targets
+
+TEXT_NOTE = ("Sketch+text: text conditioning is not enabled in this project (storyboards' optional "
+             "text is ignored by the model), so only the sketch-only setting is benchmarked.")
+
+
+@dataclass
+class BenchConfig:
+    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
+    runner: RunnerConfig = field(default_factory=RunnerConfig)
+    speed: SpeedConfig = field(default_factory=SpeedConfig)
+    methods: tuple = ALL_METHODS                                   # sketch-only and real protocols
+    noise_methods: tuple = (OURS, TEACHER_DDIM, RETRIEV_ADAPT)
+    speed_methods: tuple = ALL_METHODS
+    scaling_methods: tuple = (OURS, TEACHER_DDIM, TEACHER_DDPM, RETRIEV_ADAPT)
+    sweep_cfg: tuple[float, ...] = (1.0, 1.3, 1.6, 2.0, 2.5)     # guidance weights of the sweep
+    sweep_items: int = 6
+    trace_methods: tuple = (OURS, ABLATIONS[0], ABLATIONS[1])     # Ours, w/o Energy, w/o CTMC
+    trace_items: int = 4
+    speed_scene_seed: int = 7                                      # a reserved test seed (protocol.py)
+    retrieval_clips: int = 60                                      # RetrievAdapt's library size
+
+    @classmethod
+    def full(cls) -> "BenchConfig":
+        return cls()
+
+    @classmethod
+    def quick(cls) -> "BenchConfig":
+        return cls(protocol=ProtocolConfig(per_scenario=1, noise_scenes=2, real_windows=1),
+                   runner=RunnerConfig(variations=2, diversity_items=1, ddpm_items=1),
+                   speed=SpeedConfig(repeats=2, ddpm_repeats=1),
+                   speed_methods=(OURS, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT),
+                   scaling_methods=(OURS, TEACHER_DDIM, RETRIEV_ADAPT),
+                   sweep_cfg=(1.0, 1.6, 2.5), sweep_items=2, trace_methods=(OURS, ABLATIONS[0]), trace_items=1)
+
+
+def machine() -> dict:
+    model = next((line.split(":", 1)[1].strip() for line in _read("/proc/cpuinfo").splitlines()
+                  if line.startswith("model name")), platform.processor() or "unknown")
+    return {"cpu": model, "cores": os.cpu_count(), "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
+            "python": platform.python_version(), "load_average": [round(x, 2) for x in os.getloadavg()]}
+
+
+def git_revision() -> dict:
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=REPO_ROOT, capture_output=True, text=True).stdout.strip()
+    try:
+        return {"commit": git("rev-parse", "HEAD") or "unknown", "dirty": bool(git("status", "--porcelain"))}
+    except OSError:
+        return {"commit": "unknown", "dirty": None}
+
+
+def _read(path: str) -> str:
+    try:
+        return Path(path).read_text()
+    except OSError:
+        return ""
+
+
+def _progress(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def run_bench(bundle, config: BenchConfig, evaluator=None, figures_dir: Path | None = None,
+              log=_progress) -> dict:
+    """Everything the report shows, as plain data. `evaluator`: a loaded MotionEvaluator or None."""
+    started = time.perf_counter()
+    notes = [TEXT_NOTE]
+    if evaluator is None:
+        notes.append("FID and R-precision: no trained evaluator (resources/evaluator.pt; train it with "
+                     "`python -m engine.evaluation.train_evaluator`), shown as '-'.")
+    if not getattr(bundle, "trained", True):
+        notes.append("The model bundle is UNTRAINED (freshly initialised weights): quality figures only show "
+                     "that the benchmark runs; speed figures are representative of the architecture.")
+    index = None
+    if any(m.sampler is None for m in config.methods + config.noise_methods + config.speed_methods):
+        index, library = build_retrieval_index(config.protocol.data_dir, config.retrieval_clips)
+        notes.append(f"RetrievAdapt library: {library}.")
+    protocols = build_protocols(config.protocol)
+    out: dict = {"header": {"date": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "machine": machine(), "git": git_revision(),
+                            "bundle": {"trained": bool(getattr(bundle, "trained", False)),
+                                       "metadata": _plain(getattr(bundle, "metadata", {}))},
+                            "evaluator": evaluator is not None},
+                 "methods": {m.key: m.label for m in ALL_METHODS}, "notes": notes, "protocols": [], "samples": []}
+    all_samples = {}
+    for protocol in protocols:
+        methods = config.noise_methods if protocol.name == "noise" else config.methods
+        samples = run_protocol(bundle, protocol, methods, config.runner, index, log) if protocol.items else []
+        all_samples[protocol.name] = samples
+        refs = {item.id: item.reference for item in protocol.items}
+        entry = {"name": protocol.name, "title": protocol.title, "notes": protocol.notes,
+                 "items": len(protocol.items), "by_method": by_method(samples, evaluator, refs)}
+        if protocol.name == "noise":
+            entry["by_noise"] = _nested(by_key(samples, lambda s: f"{s.noise:g}"))
+        if protocol.name == "sketch-only":
+            entry["by_scenario"] = _nested(by_key(samples, lambda s: s.group))
+        out["protocols"].append(entry)
+        out["samples"] += [{"protocol": s.protocol, "item": s.item, "group": s.group, "noise": s.noise,
+                            "method": s.method, "wall_time_s": s.wall_time_s, "network_evals": s.network_evals,
+                            **s.metrics} for s in samples]
+    out["targets"] = _targets(all_samples["sketch-only"], out["protocols"][0]["by_method"])
+    out["speed"] = _speed(bundle, config, index, log)
+    out["diagnostics"] = _diagnostics(bundle, config, protocols[0], all_samples["sketch-only"], evaluator,
+                                      index, figures_dir, log)
+    out["elapsed_s"] = time.perf_counter() - started
+    return out
+
+
+def _targets(samples, by_method_figures) -> dict:
+    """Ours vs the teacher: DDPM-1000 (the paper's teacher) on the items it ran, and DDIM-50 on all."""
+    ours_paired, ddpm = paired(samples, OURS.key, TEACHER_DDPM.key)
+    ours_all, ddim = by_method_figures.get(OURS.key, {}), by_method_figures.get(TEACHER_DDIM.key, {})
+    out = {}
+    for name, ours, teacher in (("vs_ddpm", ours_paired, ddpm), ("vs_ddim", ours_all, ddim)):
+        out[name] = {"n": teacher.get("n", 0), "checks": [c.__dict__ for c in check_targets(ours, teacher)]}
+    return out
+
+
+def _speed(bundle, config: BenchConfig, index, log) -> dict:
+    from ..sketchify import sketchify
+    from ..synth import SCENARIOS, synthesize
+    scene = synthesize(SCENARIOS[config.speed_scene_seed % len(SCENARIOS)], config.speed_scene_seed,
+                       config.protocol.fps, seconds=max(config.speed.lengths_s + (6.0,)))
+    by_length = {s: sketchify(scene.slice(0, int(round(s * config.protocol.fps))), config.protocol.keyframes, 0.0, 0)
+                 for s in set(config.speed.lengths_s) | {6.0}}
+    table = speed_table(bundle, config.speed_methods, config.scaling_methods, by_length, config.speed, index, log)
+    table["scene"] = f"{scene.scenario}, seed {config.speed_scene_seed}, sliced to each length"
+    table["memory"] = ("peak RSS during the generation minus RSS before it, after malloc_trim "
+                       "(/proc/self/statm sampled every 2 ms; median over the repeats)")
+    return table
+
+
+def _diagnostics(bundle, config: BenchConfig, protocol, samples, evaluator, index, figures_dir, log) -> dict:
+    items = protocol.items
+    refs = {item.id: item.reference for item in items}
+    x_key = "FID" if evaluator is not None else "K2D"
+    sweep = []
+    for w in config.sweep_cfg:
+        part = replace(protocol, items=items[:config.sweep_items])
+        runs = run_protocol(bundle, part, (OURS,), replace(config.runner, cfg=w, diversity_items=0), index)
+        figures = by_method(runs, evaluator, refs).get(OURS.key, {})
+        sweep.append({"cfg": w, x_key: figures.get(x_key), "ContactF1": figures.get("ContactF1")})
+        log(f"sweep cfg {w:g}: {x_key} {figures.get(x_key)} contact F1 {figures.get('ContactF1')}")
+    curves = {m: diagnostics.reliability([s for s in samples if s.method == m], refs)
+              for m in (OURS.key, TEACHER_DDIM.key)}
+    curvature, alignment = {}, {}
+    for m in config.trace_methods:
+        curv, align = [], []
+        for item in items[:config.trace_items]:
+            trace = generate(bundle, m, item.storyboard, config.runner.seed, trace=True).trace
+            curv.append(diagnostics.flow_curvature(trace))
+            align.append(diagnostics.energy_alignment(bundle, item.storyboard, trace))
+        curvature[m.label], alignment[m.label] = diagnostics.mean_series(curv), diagnostics.mean_series(align)
+        log(f"traced {m.label}")
+    out = {"sweep_x": x_key, "sweep": sweep, "reliability": curves, "curvature": curvature,
+           "alignment": alignment, "figures": {}}
+    if figures_dir is not None:
+        figures_dir.mkdir(parents=True, exist_ok=True)
+        labels = {OURS.key: OURS.label, TEACHER_DDIM.key: TEACHER_DDIM.label}
+        made = {
+            "guidance_sweep": plots.guidance_sweep(sweep, x_key, figures_dir / "guidance_sweep.png"),
+            "reliability": plots.reliability_diagram({labels[k]: v for k, v in curves.items()},
+                                                     figures_dir / "contact_reliability.png"),
+            "curvature": plots.solver_series(curvature, "RMS(v_k - v_{k-1})", "Flow curvature over solver time",
+                                             figures_dir / "flow_curvature.png"),
+            "alignment": plots.solver_series(alignment, "cos(step, -grad E)", "Energy-flow alignment",
+                                             figures_dir / "energy_alignment.png")}
+        out["figures"] = {k: str(v) for k, v in made.items()}
+    return out
+
+
+def _nested(table: dict[tuple, dict]) -> dict:
+    out: dict = {}
+    for (method, key), figures in table.items():
+        out.setdefault(method, {})[key] = figures
+    return out
+
+
+def _plain(value):
+    """Metadata reduced to JSON-able values."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value if isinstance(value, (str, int, float, bool, type(None))) else str(value)

@@ -1,0 +1,116 @@
+"""The benchmark end to end on a tiny run (2 storyboards, 2 methods, 2 solver steps, a small
+untrained bundle), and the paper-target arithmetic on hand-made numbers."""
+import json
+import math
+from dataclasses import replace
+
+import pytest
+import torch
+
+from engine.bench.command import command_line
+from engine.bench.protocol import ProtocolConfig, build_protocols
+from engine.bench.report import render, write
+from engine.bench.runner import OURS, TEACHER_DDIM, RunnerConfig
+from engine.bench.speed import SpeedConfig
+from engine.bench.suite import BenchConfig, run_bench
+from engine.bench.targets import PAPER_TARGETS, check_targets, relative_change
+from engine.models.bundle import ModelConfig, untrained_bundle
+from engine.models.teacher import VPSchedule
+from engine.synth import synthesize
+
+
+def _few_steps(method):
+    return replace(method, sampler=replace(method.sampler, steps=2))
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    torch.set_num_threads(1)
+    root = tmp_path_factory.mktemp("bench")
+    data = root / "data"
+    (data / "salsa").mkdir(parents=True)
+    # Stands in for the held-out salsa take: 2 people, 140 frames (one 120-frame window after the trim).
+    real = synthesize("handshake", 3, seconds=7.0)
+    replace(real, obj_pose=None, obj_anchors=None, obj_type=None, obj_size=None, phase=None,
+            contact=None).save(data / "salsa" / "60_10_61_10.npz")
+    bundle = untrained_bundle(replace(ModelConfig.default(), schedule=VPSchedule(steps=4)))
+    methods = (_few_steps(OURS), _few_steps(TEACHER_DDIM))
+    config = BenchConfig(
+        protocol=ProtocolConfig(scenarios=("carry_together", "handoff"), per_scenario=1, noise_scenes=1,
+                                noise_levels=(0.4,), real_windows=1, data_dir=data, shared_dir=root / "none"),
+        runner=RunnerConfig(variations=2, diversity_items=1, ddpm_items=0),
+        speed=SpeedConfig(repeats=1, ddpm_repeats=1, lengths_s=(2.0, 6.0)),
+        methods=methods, noise_methods=methods[:1], speed_methods=methods, scaling_methods=methods[:1],
+        sweep_cfg=(1.0, 2.0), sweep_items=1, trace_methods=methods[:1], trace_items=1)
+    results = run_bench(bundle, config, None, root / "figures", log=lambda m: None)
+    md, js = root / "BENCHMARKS.md", root / "bench.json"
+    write(results, command_line(True, str(md), str(js), None), md, js)
+    return results, md.read_text(), json.loads(js.read_text()), root
+
+
+def test_protocols_without_data_synthesize_reserved_seeds_and_skip_absent_real(tmp_path):
+    protocols = build_protocols(ProtocolConfig(scenarios=("let_go",), per_scenario=1, noise_scenes=1,
+                                               noise_levels=(0.2, 0.8), data_dir=tmp_path, shared_dir=tmp_path))
+    sketch, noise, real = protocols
+    assert [i.id for i in sketch.items] == ["let_go/000001"] and sketch.items[0].noise == 0.0
+    assert "reserved test seeds" in sketch.notes[0]
+    assert [i.noise for i in noise.items] == [0.2, 0.8]
+    # same sketch seed: the same keyframes at every noise level
+    frames = [[k.frame for k in item.storyboard.keyposes] for item in noise.items]
+    assert frames[0] == frames[1]
+    assert real.items == [] and "skipped" in real.notes[0]
+
+
+def test_markdown_has_every_table_and_the_command(tiny_run):
+    _, md, _, root = tiny_run
+    assert f"`sketch2colab bench --quick -o {root / 'BENCHMARKS.md'} --json {root / 'bench.json'}`" in md
+    for heading in ("## Held-out synthesized scenes", "## Noise robustness", "## Held-out real pairs",
+                    "### Ours vs the COLLAGE Teacher", "## Speed", "## Diagnostics", "Sketch+text"):
+        assert heading in md
+    assert "| Ours | 2 |" in md and "| COLLAGE Teacher (DDIM-50) | 2 |" in md
+    assert "Wall time (s) vs clip length" in md and "2 people + 1 object" in md
+    for name in ("guidance_sweep", "contact_reliability", "flow_curvature", "energy_alignment"):
+        assert (root / "figures" / f"{name}.png").stat().st_size > 1000
+
+
+def test_json_figures_are_finite(tiny_run):
+    _, _, data, _ = tiny_run
+    sketch = data["protocols"][0]["by_method"]
+    for method in ("ours", "teacher_ddim"):
+        figures = sketch[method]
+        for key in ("K2D", "K3D", "T2D", "T3D", "fail@0.2", "fail@0.5", "Obj", "Anc", "Pen", "Pen>4cm",
+                    "FootSkate", "ContactF1", "ECE", "Brier", "Diversity"):
+            assert math.isfinite(figures[key]), (method, key)
+        assert figures["n"] == 2 and "FID" not in figures
+    real = data["protocols"][2]["by_method"]["ours"]
+    assert real["n"] == 1 and "Obj" not in real and "ContactF1" not in real
+    speed = data["speed"]["per_method"]
+    assert speed["ours"]["network_evals"] == 4 and speed["teacher_ddim"]["network_evals"] == 2
+    assert all(math.isfinite(speed[m]["wall_s"]) and speed[m]["wall_s"] > 0 for m in speed)
+    assert set(data["speed"]["length"]["ours"]) == {"2", "6"}
+    assert data["diagnostics"]["sweep_x"] == "K2D" and len(data["diagnostics"]["sweep"]) == 2
+    checks = {c["metric"]: c for c in data["targets"]["vs_ddim"]["checks"]}
+    assert checks["FID"]["relative"] is None and checks["K2D"]["relative"] is not None
+    assert data["targets"]["vs_ddpm"]["n"] == 0
+
+
+def test_relative_change_and_targets_on_hand_made_numbers():
+    assert relative_change(0.78, 1.0) == pytest.approx(-0.22)
+    assert relative_change(1.0, 0.0) is None and relative_change(None, 1.0) is None
+    assert relative_change(float("nan"), 1.0) is None
+    ours = {"FID": 0.78, "FootSkate": 0.80, "K2D": 0.60, "T2D": 0.50}
+    teacher = {"FID": 1.0, "FootSkate": 1.0, "K2D": 1.0, "T2D": 1.0, "K3D": 2.0}
+    checks = {c.metric: c for c in check_targets(ours, teacher)}
+    assert set(checks) == set(PAPER_TARGETS)
+    assert checks["FID"].met is True                       # -22% exactly meets -22%
+    assert checks["FootSkate"].met is False                # -20% misses -24%
+    assert checks["K2D"].met is True and checks["K2D"].relative == pytest.approx(-0.40)
+    assert checks["T2D"].met is True
+    assert checks["K3D"].relative is None and checks["K3D"].met is None   # Ours lacks it
+
+
+def test_render_marks_missing_figures_with_a_dash(tiny_run):
+    results, _, _, _ = tiny_run
+    md = render(results, "sketch2colab bench")
+    row = next(line for line in md.splitlines() if line.startswith("| Ours | 2 |"))
+    assert row.split("|")[3].strip() == "-"              # FID without an evaluator
