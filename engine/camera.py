@@ -6,7 +6,7 @@ horizon, looking at `target`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

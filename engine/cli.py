@@ -104,7 +104,7 @@ def cmd_generate(args) -> int:
     from pathlib import Path
 
     from .export import export_bvh_dir
-    from .generate import print_summary, run_generation, summary, write_outputs, generate
+    from .generate import generate, print_summary, summary, write_outputs
     from .models.bundle import BundleError, load_bundle, load_default
     from .sampling.sampler import SamplerError
     from .storyboard import Storyboard

@@ -4,7 +4,7 @@ Stored as an NPZ (docs/clip_format.md). Shapes: N frames, H humans, O objects, K
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np

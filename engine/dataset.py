@@ -40,8 +40,9 @@ from torch.utils.data import Dataset
 
 from .clip import ClipError, MotionClip
 from .controls import Controls, build_controls
+from .io.resample import resample_clip
 from .objects import NUM_ANCHORS
-from .rotations import matrix_to_6d, matrix_to_quat, quat_to_matrix, sixd_to_matrix
+from .rotations import matrix_to_quat, quat_to_matrix
 from .sketchify import SketchifyConfig, sketchify
 
 NUM_HUMANS = 2
@@ -114,7 +115,7 @@ class StoryboardWindows(Dataset):
         starts = []
         for path in files:
             clip = _checked(MotionClip.load(path), path)
-            clip = resample(clip, config.fps)
+            clip = resample_clip(clip, config.fps)
             if clip.num_frames < config.min_frames:
                 continue
             last = max(clip.num_frames - config.window, 0)
@@ -200,38 +201,6 @@ def canonicalize(clip: MotionClip, yaw: float = 0.0) -> MotionClip:
         kw["obj_pose"] = pose
         if clip.obj_anchors is not None:
             kw["obj_anchors"] = (clip.obj_anchors - shift) @ R.T
-    return MotionClip(**kw)
-
-
-def resample(clip: MotionClip, fps: float) -> MotionClip:
-    """The clip at another frame rate by linear interpolation (rotations re-orthonormalized,
-    quaternions normalized, contact labels rounded). Same clip when the rate already matches."""
-    if abs(clip.fps - fps) < 1e-6:
-        return clip
-    t = np.arange(0.0, (clip.num_frames - 1) / clip.fps + 1e-9, 1.0 / fps) * clip.fps
-    lo = np.minimum(np.floor(t).astype(int), clip.num_frames - 1)
-    hi = np.minimum(lo + 1, clip.num_frames - 1)
-    w = t - lo
-
-    def lerp(a: np.ndarray) -> np.ndarray:
-        wb = w.reshape((-1,) + (1,) * (a.ndim - 1))
-        return (1 - wb) * a[lo] + wb * a[hi]
-
-    kw = {f.name: getattr(clip, f.name) for f in fields(clip)}
-    kw["fps"] = fps
-    for name in ("joints", "obj_anchors", "phase"):
-        if kw[name] is not None:
-            kw[name] = lerp(kw[name])
-    kw["rot6d"] = matrix_to_6d(sixd_to_matrix(lerp(clip.rot6d)))
-    if clip.contact is not None:
-        kw["contact"] = np.round(lerp(clip.contact))
-    if clip.obj_pose is not None:
-        q_lo, q_hi = clip.obj_pose[lo, :, 3:], clip.obj_pose[hi, :, 3:]
-        q_hi = q_hi * np.where(np.sum(q_lo * q_hi, axis=-1, keepdims=True) < 0, -1.0, 1.0)  # same hemisphere
-        pose = lerp(clip.obj_pose)
-        pose[..., 3:] = (1 - w[:, None, None]) * q_lo + w[:, None, None] * q_hi
-        pose[..., 3:] /= np.linalg.norm(pose[..., 3:], axis=-1, keepdims=True)
-        kw["obj_pose"] = pose
     return MotionClip(**kw)
 
 

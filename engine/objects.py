@@ -6,7 +6,7 @@ Anchors are the grasp points (handles, table edges), in the local frame.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

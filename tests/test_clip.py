@@ -5,7 +5,7 @@ import pytest
 from engine.clip import ClipError, MotionClip
 from engine.objects import ObjectSpec, local_to_world, world_to_local
 from engine.rotations import axis_angle_to_matrix, matrix_to_quat
-from engine.skeleton import forward_kinematics, rest_pose
+from engine.skeleton import forward_kinematics
 from engine.rotations import sixd_to_matrix
 
 

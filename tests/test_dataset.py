@@ -9,7 +9,8 @@ from torch.utils.data import DataLoader
 
 from engine.clip import ClipError, MotionClip
 from engine.controls import Controls
-from engine.dataset import (HELD_OUT_SALSA_TAKES, DatasetConfig, StoryboardWindows, canonicalize, resample,
+from engine.io.resample import resample_clip
+from engine.dataset import (HELD_OUT_SALSA_TAKES, DatasetConfig, StoryboardWindows, canonicalize,
                             split_files)
 from engine.rotations import sixd_to_matrix
 from engine.skeleton import REST_OFFSETS, forward_kinematics
@@ -143,7 +144,7 @@ def test_clips_that_do_not_fit_the_slots_are_refused(tmp_path):
 
 def test_resample_picks_every_third_frame_from_60_fps():
     clip = carry_clip(61, fps=60.0)
-    slow = resample(clip, 20.0)
+    slow = resample_clip(clip, 20.0)
     assert slow.num_frames == 21 and slow.fps == 20.0
     np.testing.assert_allclose(slow.joints, clip.joints[::3], atol=1e-6)
     np.testing.assert_allclose(slow.rot6d, clip.rot6d[::3], atol=1e-5)

@@ -1,8 +1,6 @@
 """Training: EMA, deterministic batches, resume == uninterrupted, DDP on gloo, every stage end
 to end on fake clips, and the model bundle."""
 import dataclasses
-import os
-import tempfile
 import time
 from pathlib import Path
 

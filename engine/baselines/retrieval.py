@@ -34,7 +34,7 @@ import numpy as np
 
 from ..clip import MotionClip
 from ..controls import Controls, build_controls
-from ..dataset import resample
+from ..io.resample import resample_clip
 from ..objects import local_to_world
 from ..rotations import matrix_to_6d
 from ..sampling.events import GenerationResult, StepEvent
@@ -113,7 +113,7 @@ class RetrievalIndex:
         split). All must have the same number of people."""
         kept, windows = [], []
         for clip in clips:
-            clip = resample(clip, config.fps)
+            clip = resample_clip(clip, config.fps)
             if clip.num_frames < config.min_frames:
                 continue
             length = min(config.window, clip.num_frames)

@@ -33,7 +33,7 @@ from torch import nn
 
 from ..clip import MotionClip
 from ..controls import Controls, build_controls
-from ..dataset import resample
+from ..io.resample import resample_clip
 from ..metrics import frechet_distance, r_precision
 from ..storyboard import Storyboard
 from .features import MOTION_FEATURES, NUM_HUMANS, STORY_FEATURES, motion_features, story_features
@@ -172,7 +172,7 @@ def motion_batch(motions: Sequence[MotionClip] | dict[str, Any], fps: float = 20
         valid = torch.ones(b, n) if valid is None else torch.as_tensor(valid).float()
         batch = {"joints": joints, "obj_pose": obj_pose, "obj_present": present, "valid": valid}
     else:
-        clips = [resample(c, fps) for c in motions]
+        clips = [resample_clip(c, fps) for c in motions]
         if not clips:
             raise EvaluatorError("no motions to embed")
         n = max(c.num_frames for c in clips)

@@ -57,15 +57,23 @@ def resample_quaternions(q: np.ndarray, src_fps: float, dst_fps: float) -> np.nd
 def resample_clip(clip: MotionClip, fps: float) -> MotionClip:
     """The clip at another frame rate, on its skeleton: pelvis positions linear, local rotations
     and object orientations by slerp, joints recomputed by FK (bones stay rigid); anchors and
-    phase linear, contact flags by the nearer frame's value (linear, then rounded)."""
+    phase linear, contact flags by the nearer frame's value (linear, then rounded). A clip with
+    no bone offsets (generated motion, whose rotations need not match its joints exactly) has
+    its joints interpolated linearly instead. The same clip when the rate already matches."""
+    if abs(clip.fps - fps) < 1e-6:
+        return clip
+
     def lin(x):
         return None if x is None else resample_linear(x, clip.fps, fps)
 
     quat = matrix_to_quat(sixd_to_matrix(clip.rot6d.astype(np.float64)))           # (N, H, 22, 4)
     rot = quat_to_matrix(resample_quaternions(quat, clip.fps, fps))
-    root = lin(clip.joints[:, :, 0])
-    offsets = clip.offsets()
-    joints = np.stack([forward_kinematics(root[:, h], rot[:, h], offsets[h]) for h in range(clip.num_humans)], 1)
+    if clip.bone_offsets is None:
+        joints = lin(clip.joints)
+    else:
+        root = lin(clip.joints[:, :, 0])
+        joints = np.stack([forward_kinematics(root[:, h], rot[:, h], clip.bone_offsets[h])
+                           for h in range(clip.num_humans)], 1)
     obj_pose = None
     if clip.obj_pose is not None:
         obj_pose = np.concatenate([lin(clip.obj_pose[..., :3]),
