@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QColor, QFont, QPainter, QPainterPath, QPen, QPolygonF
+from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QWidget
 
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
@@ -23,6 +23,7 @@ from .strokes import clean_stroke, distance_to_polyline, splice
 
 HIT_PX = 9.0            # how close (pixels) a click must be to a joint, stroke or anchor
 FRAME_MARGIN_PX = 40.0  # free border around the sketch when framing it
+LABEL_MARGIN_PX = 3.0   # labels keep this far from the canvas edges
 PAPER = QColor("#f6f4ef")
 GRID = QColor("#d9d5cc")
 GRID_AXIS = QColor("#bdb7aa")
@@ -511,7 +512,7 @@ class SketchCanvas(QWidget):
             p.drawPolygon(self._poly(outline))
             p.setPen(OBJECT_INK)
             top = self.to_px([outline[:, 0].min(), outline[:, 1].max()])
-            p.drawText(QPointF(top[0], top[1] - 5), f"{obj.id} ({obj.spec.type})")
+            self._draw_label(p, QPointF(top[0], top[1] - 5), f"{obj.id} ({obj.spec.type})")
             if exact:
                 p.setBrush(PAPER)
                 for a in self._anchors_2d(outline):
@@ -550,8 +551,18 @@ class SketchCanvas(QWidget):
         small.setPointSizeF(max(7.0, small.pointSizeF() - 1.5))
         p.setFont(small)
         p.setPen(color.darker(130))
-        p.drawText(QPointF(px[0][0] + 6, px[0][1] + 14), label)
+        self._draw_label(p, QPointF(px[0][0] + 6, px[0][1] + 14), label)
         p.setFont(self.font())
+
+    def label_rect(self, baseline: QPointF, text: str, font: QFont) -> QRectF:
+        """Where a label written from `baseline` goes: moved inside the canvas, whole, if it
+        would stick out past an edge (paths and figures often run to the border)."""
+        box = QFontMetricsF(font).boundingRect(text).translated(baseline)
+        return fit_inside(box, QRectF(self.rect()).adjusted(LABEL_MARGIN_PX, LABEL_MARGIN_PX,
+                                                           -LABEL_MARGIN_PX, -LABEL_MARGIN_PX))
+
+    def _draw_label(self, p: QPainter, baseline: QPointF, text: str) -> None:
+        p.drawText(self.label_rect(baseline, text, p.font()), Qt.AlignLeft | Qt.AlignVCenter | Qt.TextDontClip, text)
 
     def _paint_keyposes(self, p: QPainter):
         sb, frame, sel = self._doc.storyboard, self._doc.frame, self._doc.selection
@@ -576,7 +587,7 @@ class SketchCanvas(QWidget):
                 p.drawEllipse(QPointF(*px[j]), r, r)
             p.setPen(color.darker(120))
             top = px[JOINT_INDEX["head"]] if mask[JOINT_INDEX["head"]] else px[mask].min(axis=0)
-            p.drawText(QPointF(top[0] - 4, top[1] - 0.1 * self.zoom - 8), agent.name or agent.id)
+            self._draw_label(p, QPointF(top[0] - 4, top[1] - 0.1 * self.zoom - 8), agent.name or agent.id)
 
     def _paint_contacts(self, p: QPainter):
         for c in self._doc.storyboard.contacts:
@@ -614,6 +625,14 @@ class SketchCanvas(QWidget):
             text += f"   \u00b7   agent {doc.selection.agent}, {doc.selection.joint}"
         p.setPen(QColor("#6b665c"))
         p.drawText(QPointF(12, 20), text)
+
+
+def fit_inside(box: QRectF, bounds: QRectF) -> QRectF:
+    """`box` moved the least it takes to lie inside `bounds` (its top-left wins if it is larger)."""
+    dx = min(0.0, bounds.right() - box.right())
+    dy = min(0.0, bounds.bottom() - box.bottom())
+    moved = box.translated(dx, dy)
+    return moved.translated(max(0.0, bounds.left() - moved.left()), max(0.0, bounds.top() - moved.top()))
 
 
 def _fresh_id(prefix: str, taken: list[str]) -> str:

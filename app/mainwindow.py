@@ -14,7 +14,7 @@ from pathlib import Path
 from PySide6.QtCore import QSettings, Qt
 from PySide6.QtGui import QAction, QActionGroup, QKeySequence
 from PySide6.QtWidgets import (QDockWidget, QFileDialog, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
-                               QProgressBar, QSizePolicy, QToolButton, QVBoxLayout, QWidget)
+                               QProgressBar, QSizePolicy, QVBoxLayout, QWidget)
 
 from engine.clip import MotionClip
 from engine.export import export_gltf, export_npz, export_object_path
@@ -28,10 +28,10 @@ from .document import TOOLS, Document, new_storyboard
 from .examples import list_examples
 from .generation import GenerationSettings, StepStream, start_generation
 from .phase_strip import PhaseStrip, phase_legend_html
-from .playback import Playback
+from .playback import SPEEDS, Playback, speed_label
 from .poses import previous_keypose
 from .properties import PropertiesPanel
-from .timeline import Timeline, delete_keyframe
+from .timeline import PlaybackControls, Timeline, delete_keyframe
 from .viewport import Viewport
 from .worker import GenerationRunner
 
@@ -136,6 +136,17 @@ class MainWindow(QMainWindow):
         self.act_play = a("Play / Pause", self.playback.toggle, QKeySequence(Qt.Key_Space))
         self.act_next = a("Next Frame", lambda: self.playback.step(1), QKeySequence(Qt.Key_Right))
         self.act_prev = a("Previous Frame", lambda: self.playback.step(-1), QKeySequence(Qt.Key_Left))
+        self.act_loop = a("Loop", self.playback.set_loop, tip="Loop playback; off, it stops at the last frame")
+        self.act_loop.setCheckable(True)
+        self.act_loop.setChecked(self.playback.loop)
+        self.speed_group = QActionGroup(self)
+        self.speed_actions: dict[float, QAction] = {}
+        for speed in SPEEDS:
+            act = a(speed_label(speed), lambda _=False, s=speed: self.playback.set_speed(s))
+            act.setCheckable(True)
+            self.speed_group.addAction(act)
+            self.speed_actions[speed] = act
+        self.speed_actions[self.playback.speed].setChecked(True)
         self.act_generate = a("\u25b6  Generate", self.generate, [QKeySequence("Ctrl+Return"), QKeySequence("Ctrl+Enter")],
                               tip="Generate motion from the storyboard (Ctrl+Enter)")
         self.act_cancel = a("\u25a0  Cancel", self.runner.cancel, QKeySequence(Qt.Key_Escape),
@@ -152,11 +163,10 @@ class MainWindow(QMainWindow):
         column.setSpacing(0)
         header = QHBoxLayout()
         header.setContentsMargins(6, 2, 6, 2)
-        self.play_button = QToolButton()
-        self.play_button.setDefaultAction(self.act_play)
-        self.play_button.setText("\u25b6")
+        self.playback_controls = PlaybackControls(self.playback)
         self.frame_label = QLabel()
-        header.addWidget(self.play_button)
+        header.addWidget(self.playback_controls)
+        header.addSpacing(8)
         header.addWidget(self.frame_label)
         header.addStretch(1)
         header.addWidget(QLabel(phase_legend_html()))
@@ -212,6 +222,10 @@ class MainWindow(QMainWindow):
         tools.addActions(list(self.tool_actions.values()))
         play = bar.addMenu("&Playback")
         play.addActions([self.act_play, self.act_prev, self.act_next])
+        play.addSeparator()
+        play.addAction(self.act_loop)
+        speed_menu = play.addMenu("&Speed")
+        speed_menu.addActions(list(self.speed_actions.values()))
         gen = bar.addMenu("&Generate")
         gen.addActions([self.act_generate, self.act_cancel])
         view = bar.addMenu("&View")
@@ -262,10 +276,12 @@ class MainWindow(QMainWindow):
         doc.frameChanged.connect(self._on_frame)
         doc.storyboardChanged.connect(self._on_storyboard)
         doc.resultChanged.connect(self._show_result)
-        self.viewport.frameChanged.connect(doc.set_frame)
+        self.viewport.playToggleRequested.connect(self.playback.toggle)
+        self.viewport.stepRequested.connect(self.playback.step)
         self.canvas.message.connect(lambda text: self.statusBar().showMessage(text, 5000))
         self.properties.objectShapeChanged.connect(lambda shape: setattr(self.canvas, "object_shape", shape))
-        self.playback.playingChanged.connect(lambda on: self.play_button.setText("\u23f8" if on else "\u25b6"))
+        self.playback.loopChanged.connect(self.act_loop.setChecked)
+        self.playback.speedChanged.connect(self._on_speed)
         self.runner.step.connect(self._on_step)
         self.runner.finished.connect(self._on_generated)
         self.runner.failed.connect(self._on_generation_failed)
@@ -285,16 +301,18 @@ class MainWindow(QMainWindow):
         self.frame_label.setText(f"frame <b>{frame}</b> / {sb.length - 1}   \u00b7   {sb.length} frames @ {sb.fps:g} fps")
         self.viewport.set_frame(frame)
 
+    def _on_speed(self, speed: float) -> None:
+        for rate, action in self.speed_actions.items():
+            action.setChecked(rate == speed)   # none checked for a rate the menu does not offer
+
     def _on_storyboard(self) -> None:
         self.viewport.set_storyboard(self.doc.storyboard)
         self._on_frame(self.doc.frame)
 
     def _show_result(self) -> None:
         """A new clip reframes the 3D camera (set_clip); the playhead stays where the artist left it."""
-        frame = self.doc.frame
         self.viewport.set_clip(self.doc.clip)
-        self.doc.set_frame(frame)
-        self.viewport.set_frame(frame)
+        self.viewport.set_frame(self.doc.frame)
 
     def _set_onion(self, on: bool) -> None:
         self.canvas.show_onion = on

@@ -17,6 +17,7 @@ from .timeline import LABEL_W, MARGIN
 PHASE_COLORS = ("#8ecae6", "#ffb703", "#8f5fbf")   # approach, contact, carry
 PLAYHEAD = "#d1495b"
 LANE = 0.16                                          # height of one contact-span lane (plot units)
+EMPTY_HINT = "phases appear while generating"
 
 
 def phase_legend_html() -> str:
@@ -50,6 +51,8 @@ class PhaseStrip(pg.PlotWidget):
         item.addItem(self._spans)
         self._playhead = pg.InfiniteLine(angle=90, pen=pg.mkPen(PLAYHEAD, width=1.6))
         item.addItem(self._playhead)
+        self.empty_hint = pg.TextItem(EMPTY_HINT, color="#b0aa9c", anchor=(0.5, 0.5))
+        item.addItem(self.empty_hint, ignoreBounds=True)
         document.frameChanged.connect(self._playhead.setValue)
         document.storyboardChanged.connect(self._on_storyboard)
         document.resultChanged.connect(self.show_document_phase)
@@ -67,6 +70,7 @@ class PhaseStrip(pg.PlotWidget):
         x = np.arange(stacked.shape[1], dtype=float)
         for curve, y in zip(self._curves, stacked):
             curve.setData(x, y)
+        self.empty_hint.setVisible(phase is None)
 
     def show_document_phase(self) -> None:
         """Back to the last finished generation's occupancy (after streaming, cancel or error)."""
@@ -82,6 +86,7 @@ class PhaseStrip(pg.PlotWidget):
                             pen=pg.mkPen(None))
         bottom = -(max(len(contacts), 1)) * LANE - 0.06
         self.getPlotItem().setRange(xRange=(0, sb.length - 1), yRange=(bottom, 1.0), padding=0)
+        self.empty_hint.setPos((sb.length - 1) / 2, 0.5)
         self._playhead.setValue(self._doc.frame)
 
     # ---- scrubbing ---------------------------------------------------------------------------

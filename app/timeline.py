@@ -4,6 +4,9 @@ playhead, and the frame span used by new trajectories and contacts.
 Mouse: click or drag to scrub; drag a marker to retime it; shift-drag to select a frame span
 (click without shift clears it); double-click an agent's track to add a keypose there (a copy
 of the previous keyframe); right-click a marker to delete it.
+
+PlaybackControls is the header's transport (play / pause, loop, speed): a view of the Playback
+model, which it changes only through its setters.
 """
 from __future__ import annotations
 
@@ -12,10 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QPainter, QPen, QPolygonF
-from PySide6.QtWidgets import QMenu, QWidget
+from PySide6.QtWidgets import QComboBox, QHBoxLayout, QMenu, QToolButton, QWidget
 
 from . import commands as cmd
 from .document import Document
+from .playback import SPEEDS, Playback, speed_label
 from .poses import new_keypose
 
 LABEL_W = 72      # the track-name column; the phase strip's axis is made as wide to line up
@@ -198,6 +202,49 @@ class Timeline(QWidget):
         p.setPen(QPen(color.darker(150), 1))
         p.setBrush(color)
         p.drawPolygon(QPolygonF([QPointF(x, y - r), QPointF(x + r, y), QPointF(x, y + r), QPointF(x - r, y)]))
+
+
+class PlaybackControls(QWidget):
+    """Play / pause, a loop toggle and a speed selector bound to `playback`."""
+
+    def __init__(self, playback: Playback, parent: QWidget | None = None):
+        super().__init__(parent)
+        self._playback = playback
+        self.play_button = QToolButton()
+        self.play_button.setToolTip("Play / Pause (Space); Left / Right step one frame")
+        self.play_button.clicked.connect(playback.toggle)
+        self.loop_button = QToolButton()
+        self.loop_button.setText("\u27f2 Loop")
+        self.loop_button.setToolTip("Loop playback; off, it stops at the last frame")
+        self.loop_button.setCheckable(True)
+        self.speed_box = QComboBox()
+        self.speed_box.setToolTip("Playback speed")
+        for speed in SPEEDS:
+            self.speed_box.addItem(speed_label(speed), speed)
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.setSpacing(4)
+        for widget in (self.play_button, self.loop_button, self.speed_box):
+            layout.addWidget(widget)
+        self._show_playing(playback.playing)
+        self.loop_button.setChecked(playback.loop)
+        self._show_speed(playback.speed)
+        # Connected after the initial state is shown, so showing it does not write it back.
+        self.loop_button.toggled.connect(playback.set_loop)
+        self.speed_box.currentIndexChanged.connect(self._choose_speed)
+        playback.playingChanged.connect(self._show_playing)
+        playback.loopChanged.connect(self.loop_button.setChecked)
+        playback.speedChanged.connect(self._show_speed)
+
+    def _show_playing(self, playing: bool) -> None:
+        self.play_button.setText("\u23f8" if playing else "\u25b6")
+
+    def _choose_speed(self, index: int) -> None:
+        if index >= 0:   # -1: a rate set elsewhere that the list does not offer
+            self._playback.set_speed(self.speed_box.itemData(index))
+
+    def _show_speed(self, speed: float) -> None:
+        self.speed_box.setCurrentIndex(self.speed_box.findData(speed))
 
 
 def delete_keyframe(document: Document, kind: str, owner: str, frame: int) -> None:

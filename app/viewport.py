@@ -6,6 +6,9 @@ something it shows changed (clip, frame, camera, size, storyboard), on the next 
 many previews stream in between two paints, only the newest is drawn.
 The renderer is built and its shaders compiled just after the first paint (warm_up), so the
 second of shader compiling falls at start-up, not on a generation's first preview.
+It is a view of the playhead, not a clock: it shows the frame it is given (set_frame), and its
+playback keys only ask for changes (playToggleRequested, stepRequested), which the owner of
+the playback model (app.playback.Playback) answers.
 
 Public API (everything else is private):
     Viewport(parent=None, config: RenderConfig | None = None)
@@ -14,17 +17,15 @@ Public API (everything else is private):
                                            and the camera
     warm_up()                              build the renderer and compile its shaders now
     set_storyboard(sb: Storyboard | None)  keyframe ghosts and target paths come from it
-    set_frame(frame: int)                  clamped to the clip; emits frameChanged when it moves
+    set_frame(frame: int)                  the frame to show, clamped to the clip
     frame -> int, num_frames -> int
-    play(), pause(), toggle_playback(), step(frames: int = 1)
-    loop: bool (default True), speed: float (playback rate, default 1.0)
     frame_all()                            aim the camera at everything (also the F key)
     camera: OrbitCamera                    change it, then call update_view()
     empty_hint: str                        shown over the ground while there is no clip
     grab_png(path) -> bool                 save what the widget shows
-Signals: frameChanged(int), playingChanged(bool).
+Signals: playToggleRequested(), stepRequested(frames: int).
 Mouse: left drag orbits, middle drag or shift + left drag pans, wheel zooms.
-Keys: F frames all, Space plays / pauses, Left / Right step one frame.
+Keys: F frames all; Space requests play / pause, Left / Right request a one-frame step.
 """
 from __future__ import annotations
 
@@ -41,37 +42,34 @@ WHEEL_ZOOM_PER_NOTCH = 0.88  # distance factor per 120 units of wheel angle
 
 
 class Viewport(QWidget):
-    frameChanged = Signal(int)
-    playingChanged = Signal(bool)
+    playToggleRequested = Signal()
+    stepRequested = Signal(int)
 
     def __init__(self, parent: QWidget | None = None, config: RenderConfig | None = None):
         super().__init__(parent)
         self.setFocusPolicy(Qt.StrongFocus)
         self.setMinimumSize(160, 120)
         self.camera = OrbitCamera()
-        self.loop = True
         self.empty_hint = ""
-        self._speed = 1.0
         self._config = config
         self._renderer: SceneRenderer | None = None
         self._warm = False
         self._error = ""
         self._clip: MotionClip | None = None
         self._storyboard: Storyboard | None = None
-        self._frame = 0
+        self._playhead = 0  # the frame asked for; shown clamped to the clip (see frame)
         self._image: QImage | None = None
         self._pixels = None  # the renderer's buffer that _image points into
         self._dirty = True
         self._drag_pos: QPointF | None = None
         self._drag_mode: str | None = None  # "orbit" or "pan" while a button is held
-        self._timer = QTimer(self)
-        self._timer.setTimerType(Qt.PreciseTimer)
-        self._timer.timeout.connect(self._advance)
 
     # ---- content -------------------------------------------------------------------------
     @property
     def frame(self) -> int:
-        return self._frame
+        """The frame shown: the playhead, clamped to the clip (a shorter preview keeps the
+        playhead for the next, longer one)."""
+        return min(self._playhead, max(self.num_frames - 1, 0))
 
     @property
     def num_frames(self) -> int:
@@ -79,15 +77,12 @@ class Viewport(QWidget):
 
     def set_clip(self, clip: MotionClip | None) -> None:
         self._clip = clip
-        self._frame = -1  # force the signal for frame 0
-        self.set_frame(0)
+        self._playhead = 0
         self.frame_all()
-        self._restart_timer()
 
     @Slot(object)
     def set_preview(self, clip: MotionClip) -> None:
         self._clip = clip
-        self.set_frame(self._frame)
         self.update_view()
 
     def set_storyboard(self, storyboard: Storyboard | None) -> None:
@@ -96,14 +91,13 @@ class Viewport(QWidget):
 
     @Slot(int)
     def set_frame(self, frame: int) -> None:
-        frame = min(max(int(frame), 0), max(self.num_frames - 1, 0))
-        if frame != self._frame:
-            self._frame = frame
-            self.frameChanged.emit(frame)
+        shown = self.frame
+        self._playhead = max(int(frame), 0)
+        if self.frame != shown:
             self.update_view()
 
     def frame_all(self) -> None:
-        scene = scene_from_clip(self._clip, self._frame, self._storyboard)
+        scene = scene_from_clip(self._clip, self.frame, self._storyboard)
         if self._clip is not None:
             scene.people = self._clip.joints.reshape(-1, 22, 3)  # the whole motion, not one frame
         self.camera.frame_all(scene.bounds(), self.width() / max(1, self.height()))
@@ -113,54 +107,6 @@ class Viewport(QWidget):
         """Mark the picture stale; it is re-rendered at the next paint."""
         self._dirty = True
         self.update()
-
-    # ---- playback ------------------------------------------------------------------------
-    @property
-    def speed(self) -> float:
-        return self._speed
-
-    @speed.setter
-    def speed(self, rate: float) -> None:
-        self._speed = max(float(rate), 1e-3)
-        self._restart_timer(start=self.playing)
-
-    @property
-    def playing(self) -> bool:
-        return self._timer.isActive()
-
-    def play(self) -> None:
-        if self.num_frames < 2 or self.playing:
-            return
-        if self._frame >= self.num_frames - 1 and not self.loop:
-            self.set_frame(0)
-        self._restart_timer(start=True)
-        self.playingChanged.emit(True)
-
-    def pause(self) -> None:
-        if self.playing:
-            self._timer.stop()
-            self.playingChanged.emit(False)
-
-    def toggle_playback(self) -> None:
-        self.pause() if self.playing else self.play()
-
-    def step(self, frames: int = 1) -> None:
-        n = self.num_frames
-        if n:
-            target = self._frame + frames
-            self.set_frame(target % n if self.loop else target)
-
-    def _restart_timer(self, start: bool = False) -> None:
-        if self._clip is not None:
-            self._timer.setInterval(max(1, round(1000.0 / (self._clip.fps * self._speed))))
-        if start:
-            self._timer.start()
-
-    def _advance(self) -> None:
-        if self._frame >= self.num_frames - 1 and not self.loop:
-            self.pause()
-            return
-        self.step(1)
 
     # ---- output --------------------------------------------------------------------------
     def grab_png(self, path: str) -> bool:
@@ -192,7 +138,7 @@ class Viewport(QWidget):
         if self.num_frames:
             painter.setPen(QColor(60, 60, 60))
             painter.drawText(self.rect().adjusted(8, 6, -8, -6), Qt.AlignLeft | Qt.AlignTop,
-                             f"frame {self._frame} / {self.num_frames - 1}")
+                             f"frame {self.frame} / {self.num_frames - 1}")
         elif self.empty_hint and self._image is not None:
             self._paint_hint(painter)
         painter.end()
@@ -227,7 +173,7 @@ class Viewport(QWidget):
         if self._ensure_renderer() is None:
             return
         try:
-            pixels = self._renderer.render(scene_from_clip(self._clip, self._frame, self._storyboard), self.camera)
+            pixels = self._renderer.render(scene_from_clip(self._clip, self.frame, self._storyboard), self.camera)
         except RenderUnavailableError as e:
             self._error, self._image = str(e), None
             return
@@ -278,10 +224,8 @@ class Viewport(QWidget):
         if key == Qt.Key_F:
             self.frame_all()
         elif key == Qt.Key_Space:
-            self.toggle_playback()
-        elif key == Qt.Key_Right:
-            self.step(1)
-        elif key == Qt.Key_Left:
-            self.step(-1)
+            self.playToggleRequested.emit()
+        elif key in (Qt.Key_Left, Qt.Key_Right):
+            self.stepRequested.emit(1 if key == Qt.Key_Right else -1)
         else:
             super().keyPressEvent(event)

@@ -30,16 +30,19 @@ def tiny_config(steps: int = 2) -> TrainConfig:
                        surrogate_init_latents=1, checkpoint_every_s=1e9)
 
 
-def test_ema_update():
+def test_ema_update_warms_up_then_holds_its_decay():
     model = torch.nn.Linear(2, 1)
     ema = EMA(model, decay=0.9)
     before = ema.shadow.weight.clone()
     with torch.no_grad():
         model.weight.add_(1.0)
-    ema.update(model)
-    assert torch.allclose(ema.shadow.weight, 0.9 * before + 0.1 * model.weight)
+    ema.update(model)  # first update: decay 1/10, the average jumps most of the way
+    assert torch.allclose(ema.shadow.weight, 0.1 * before + 0.9 * model.weight)
+    for _ in range(200):
+        ema.update(model)
+    assert ema.current_decay() == 0.9
+    assert torch.allclose(ema.shadow.weight, model.weight, atol=1e-6)
     assert not ema.shadow.weight.requires_grad
-
 
 def test_step_batches_are_deterministic_and_split_across_ranks():
     a = list(StepBatches(10, 3, steps=5, start=0, seed=1))

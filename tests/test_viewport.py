@@ -1,5 +1,6 @@
 """The Viewport widget under QT_QPA_PLATFORM=offscreen: it paints the scene, the mouse moves
-the camera, playback advances frames, and grab_png writes a picture."""
+the camera, it shows the frame it is given, its playback keys only ask, and grab_png writes a
+picture. (The playback clock itself is app.playback.Playback, tested in tests/app.)"""
 import os
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
@@ -29,8 +30,7 @@ def viewport(qtbot):
     view.set_storyboard(carry_storyboard(clip))
     view.show()
     qtbot.waitExposed(view)
-    yield view
-    view.pause()
+    return view
 
 
 def grab_rgb(view) -> np.ndarray:
@@ -67,22 +67,28 @@ def test_left_drag_orbits_and_wheel_zooms(viewport, qtbot):
     assert not np.array_equal(grab_rgb(viewport), before)
 
 
-def test_playback_advances_and_loops(viewport, qtbot):
-    seen = []
-    viewport.frameChanged.connect(seen.append)
-    viewport.speed = 4.0
-    viewport.play()
-    assert viewport.playing
-    qtbot.waitUntil(lambda: 0 in seen[1:] and len(seen) > viewport.num_frames, timeout=10000)
-    viewport.pause()
-    assert not viewport.playing
-    viewport.set_frame(3)
-    viewport.step()
-    assert viewport.frame == 4
-    viewport.loop = False
+def test_shows_the_frame_it_is_given(viewport):
+    first = grab_rgb(viewport).copy()
     viewport.set_frame(viewport.num_frames - 1)
-    viewport.step()
     assert viewport.frame == viewport.num_frames - 1
+    assert not np.array_equal(grab_rgb(viewport), first)   # the people moved
+    viewport.set_frame(500)   # past a short clip: its last frame shows, the playhead is kept
+    assert viewport.frame == viewport.num_frames - 1
+    viewport.set_clip(carry_clip(600))
+    viewport.set_frame(500)
+    assert viewport.frame == 500
+
+
+def test_playback_keys_request_and_do_not_move_the_frame(viewport, qtbot):
+    toggles, steps = [], []
+    viewport.playToggleRequested.connect(lambda: toggles.append(True))
+    viewport.stepRequested.connect(steps.append)
+    viewport.set_frame(3)
+    viewport.setFocus()
+    for key in (Qt.Key_Space, Qt.Key_Right, Qt.Key_Left):
+        qtbot.keyClick(viewport, key)
+    assert toggles == [True] and steps == [1, -1]
+    assert viewport.frame == 3
 
 
 def test_preview_keeps_the_frame_and_camera(viewport):

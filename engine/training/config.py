@@ -24,7 +24,8 @@ class TrainConfig:
     threads: int = 2                 # torch CPU threads per process
     surrogate_init_latents: int = 8  # data latents whose decoder Jacobians initialise B_rho
     model: ModelConfig = field(default_factory=ModelConfig.default)
-    stage_lr: dict = field(default_factory=lambda: {"student1": 1e-4, "student2": 1e-4, "surrogate": 1e-5})
+    stage_lr: dict = field(default_factory=lambda: {"vqvae": 5e-4, "student1": 1e-4, "student2": 1e-4,
+                                                    "surrogate": 1e-5})
     stage_steps: dict = field(default_factory=dict)   # per-stage overrides of `steps` (stage "all")
 
     def lr_for(self, stage: str) -> float:

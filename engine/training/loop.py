@@ -103,7 +103,7 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
         state = checkpoint.load(ckpt_path)
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
-        ema.load_state_dict(state["ema"])
+        ema.load_state_dict(state["ema"], int(state.get("ema_updates", 0)))
         torch.set_rng_state(state["rng"][rank] if rank < len(state["rng"]) else state["rng"][0])
         start = int(state["step"])
         elapsed_before = float(state.get("elapsed_s", 0.0))
@@ -116,6 +116,7 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
             dist.all_gather_object(rngs, torch.get_rng_state())
         if rank == 0:
             checkpoint.save_atomic({"model": model.state_dict(), "optimizer": opt.state_dict(), "ema": ema.state_dict(),
+                                    "ema_updates": ema.updates,
                                     "step": step, "rng": rngs, "stage": task.name,
                                     "elapsed_s": elapsed_before + time.monotonic() - began}, ckpt_path)
 

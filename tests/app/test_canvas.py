@@ -124,3 +124,17 @@ def test_wheel_zoom_keeps_the_point_under_the_cursor(qtbot, canvas):
     canvas.wheelEvent(event)
     assert canvas.zoom > 170
     assert canvas.to_uv([200, 150]) == pytest.approx(before)
+
+
+def test_labels_stay_inside_the_canvas(canvas):
+    from PySide6.QtCore import QPointF, QRectF
+    from app.canvas import fit_inside
+    bounds = QRectF(0, 0, 100, 50)
+    assert fit_inside(QRectF(90, 45, 30, 10), bounds) == QRectF(70, 40, 30, 10)
+    assert fit_inside(QRectF(-5, -8, 30, 10), bounds) == QRectF(0, 0, 30, 10)
+    assert fit_inside(QRectF(10, 10, 30, 10), bounds) == QRectF(10, 10, 30, 10)
+    # A path that starts at the bottom-right corner: its label is moved in, whole.
+    label = "B r_wrist  0\u2013119"
+    for baseline in (QPointF(canvas.width() - 4, canvas.height() + 10), QPointF(-30, 2)):
+        rect = canvas.label_rect(baseline, label, canvas.font())
+        assert QRectF(canvas.rect()).contains(rect) and rect.width() > 40

@@ -68,3 +68,13 @@ def test_phase_strip_shows_stacked_occupancy_and_scrubs(qtbot, doc):
     assert tops[1] == pytest.approx(phase[:, 0]) and tops[3] == pytest.approx(np.ones(len(phase)), abs=1e-6)
     qtbot.mouseClick(strip.viewport(), Qt.LeftButton, pos=QPoint(strip.width() // 2, 40))
     assert 40 < doc.frame < 80
+
+
+def test_empty_phase_strip_shows_a_hint(qtbot, doc):
+    strip = PhaseStrip(doc)
+    qtbot.addWidget(strip)
+    assert strip.empty_hint.isVisible() and "generating" in strip.empty_hint.toPlainText()
+    strip.set_phase(phase_schedule(doc.storyboard.length, 0.7))
+    assert not strip.empty_hint.isVisible()
+    strip.set_phase(None)
+    assert strip.empty_hint.isVisible()
