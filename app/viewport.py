@@ -17,7 +17,7 @@ Public API (everything else is private):
                                            and the camera
     warm_up()                              build the renderer and compile its shaders now
     set_storyboard(sb: Storyboard | None)  keyframe ghosts and target paths come from it
-    set_frame(frame: int)                  the frame to show, clamped to the clip
+    set_frame(frame: int)                  the playhead; shown clamped to the clip (see frame)
     frame -> int, num_frames -> int
     frame_all()                            aim the camera at everything (also the F key)
     camera: OrbitCamera                    change it, then call update_view()
