@@ -7,7 +7,6 @@ the Jacobian surrogate's gradient cosine to exact autograd through the decoder.
 """
 from __future__ import annotations
 
-import json
 import platform
 import subprocess
 import time
@@ -124,7 +123,8 @@ def _card_markdown(card: dict, meta: dict, command: str) -> str:
         "|---|---|---|",
         *held,
         "",
-        "Held-out files: " + json.dumps(card["held_out_files"]),
+        "Held-out files: " + "; ".join(f"{source}: {len(names)} ({', '.join(names[:3])}{', ...' if len(names) > 3 else ''})"
+                                       for source, names in card["held_out_files"].items()),
         "",
     ])
 
