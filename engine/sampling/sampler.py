@@ -63,7 +63,7 @@ class SamplerConfig:
     guidance_alpha: float = 0.5     # damping of the Polyak step
     guidance_max_rms: float = 0.15  # cap on one step's RMS change, latent units
     latent_weight: float = 0.05     # eta_lat, weight of E_lat against the raw energies
-    final_refine_steps: int = 4     # extra guidance steps on the final latent (physics stage)
+    final_refine_steps: int = 4     # extra energy steps on the final latent (physics stage)
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
     langevin_step_size: float = 1e-3
     threads: int | None = None      # torch threads for this run (None: leave as is)
@@ -150,15 +150,15 @@ class _Run:
         self.occupancy = plan.occupancy
         self.energy_ctx.occupancy = plan.occupancy
 
-    def _guide(self, z0: torch.Tensor, t: float) -> tuple[torch.Tensor, dict[str, float]]:
-        """`guidance_steps` Polyak steps of the total energy on the clean latent z0 (K, T, V, d).
+    def _guide(self, z0: torch.Tensor, t: float, steps: int) -> tuple[torch.Tensor, dict[str, float]]:
+        """`steps` Polyak steps of the total energy on the clean latent z0 (K, T, V, d).
 
         A Polyak step moves along the gradient g by E / |g|^2, the length that would zero the
         energy if it were linear there; damped by `guidance_alpha` and capped at an RMS of
         `guidance_max_rms` latent units, so a far-off keyframe cannot throw the latent off the
         data manifold and a satisfied storyboard leaves it alone."""
         cfg, values = self.cfg, {}
-        for _ in range(cfg.guidance_steps):
+        for _ in range(steps):
             energy, grad = self._energy_and_gradient(z0, t, values)
             sq = grad.flatten(1).pow(2).sum(1).clamp_min(1e-12)
             step = (cfg.guidance_alpha * energy / sq)[:, None, None, None] * grad
@@ -199,9 +199,8 @@ class _Run:
         return energy, grad
 
     def _event(self, step: int, num: int, t: float, z: torch.Tensor, z0: torch.Tensor,
-               motion: dict[str, torch.Tensor] | None, energies: dict[str, float]) -> StepEvent:
-        if motion is None:
-            motion = self._decode(z0)
+               energies: dict[str, float]) -> StepEvent:
+        motion = self._decode(z0)
         if self.first_step is None:
             self.first_step = time.perf_counter() - self.start
         return StepEvent(step=step, num_steps=num, t=t, latent=z.numpy().copy(),
@@ -237,6 +236,7 @@ class _Run:
 
     # ---- student: guided Heun ODE ------------------------------------------------------------
     def _velocity(self, z: torch.Tensor, t: float, entity_pos: torch.Tensor | None) -> torch.Tensor:
+        """CFG-guided student velocity; one network evaluation (cond and uncond run as one batch)."""
         from ..models.teacher import ClassifierFreeGuidance
         student = self.bundle.student
         occupancy = self.occupancy if self.cfg.use_ctmc else None
@@ -265,19 +265,16 @@ class _Run:
             z_next = z + (t_next - t) * v
             z0 = z_next - t_next * v2 if t_next > 0 else z_next   # clean estimate at t_next
             noise = (z_next - (1 - t_next) * z0) / max(t_next, 1e-8)
-            motion = self._decode(z0)
             if cfg.use_ctmc and i % cfg.ctmc_every == 0:
-                self._plan(z0, motion)
+                self._plan(z0, self._decode(z0))
             energies = {}
             if cfg.use_energy or cfg.use_latent:
-                z0, energies = self._guide(z0, t_next)
-                motion = None
+                z0, energies = self._guide(z0, t_next, cfg.guidance_steps)
             z = (1 - t_next) * z0 + t_next * noise if t_next > 0 else z0
             entity_pos = b.vqvae.decode_lowres(z0)
-            yield self._event(i, cfg.steps, t_next, z, z0, motion, energies)
+            yield self._event(i, cfg.steps, t_next, z, z0, energies)
         if cfg.use_energy or cfg.use_latent:
-            for _ in range(cfg.final_refine_steps // max(cfg.guidance_steps, 1)):
-                z0, _ = self._guide(z0, 0.0)
+            z0, _ = self._guide(z0, 0.0, cfg.final_refine_steps)
         z0 = self._langevin(z0)
         if cfg.use_ctmc:
             self._plan(z0, self._decode(z0))
@@ -316,7 +313,7 @@ class _Run:
         z0 = None
         for step in steps:
             z0 = step.z if step.index == step.num_steps - 1 else step.z0_hat
-            yield self._event(step.index, step.num_steps, step.tau, step.z, z0, None, {})
+            yield self._event(step.index, step.num_steps, step.tau, step.z, z0, {})
         return self._result(z0)
 
 
