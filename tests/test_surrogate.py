@@ -1,13 +1,13 @@
 """Jacobian surrogate: layout of the motion flattening, block-Toeplitz structure, closed-form
 fit against exact autograd VJPs of small fake decoders."""
 import numpy as np
+import pytest
 import torch
-
-from engine.objects import NUM_ANCHORS
 
 from engine.models.surrogate import (DEFAULT_LAYOUT, JacobianSurrogate, SurrogateConfig, exact_latent_gradient,
                                      fit_surrogate, flatten_motion, gradient_cosine, init_from_jacobians,
                                      random_cotangents, surrogate_loss, unflatten_motion)
+from engine.objects import NUM_ANCHORS
 
 torch.set_num_threads(1)
 T, STRIDE, V, D_LAT = 8, 4, 3, 8
@@ -97,3 +97,15 @@ def test_surrogate_loss_trains_only_the_surrogate():
     assert sur.down.grad is not None and loss > 0
     exact = exact_latent_gradient(decoder, z, cot)
     assert exact.shape == z.shape and not exact.requires_grad
+
+
+def test_any_length_in_whole_frame_groups():
+    """Block-Toeplitz: a short clip's gradient maps like the same gradient zero-padded to the
+    training length."""
+    sur = JacobianSurrogate()
+    short = torch.randn(2, 40, sur.cfg.motion_dim, generator=torch.Generator().manual_seed(1))
+    padded = torch.cat([short, short.new_zeros(2, 80, sur.cfg.motion_dim)], 1)
+    with torch.no_grad():
+        assert torch.allclose(sur(short), sur(padded)[:, :10], atol=1e-5)
+    with pytest.raises(ValueError, match="multiple of 4 frames"):
+        sur(torch.randn(1, 41, sur.cfg.motion_dim))

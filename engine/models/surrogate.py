@@ -76,7 +76,8 @@ class SurrogateConfig:
 
 
 class JacobianSurrogate(nn.Module):
-    """B_rho: motion gradient (B, N, D) -> latent gradient (B, T_lat, V, d)."""
+    """B_rho: motion gradient (B, N, D) -> latent gradient (B, N / stride, V, d) for any N that is a
+    multiple of the stride (cfg.frames / cfg.latent_steps)."""
 
     def __init__(self, cfg: SurrogateConfig | None = None):
         super().__init__()
@@ -96,9 +97,12 @@ class JacobianSurrogate(nn.Module):
         g = flatten_motion(grad_motion) if isinstance(grad_motion, dict) else grad_motion
         cfg, w = self.cfg, self.cfg.bandwidth
         b, n, dim = g.shape
-        if (n, dim) != (cfg.frames, cfg.motion_dim):
-            raise ValueError(f"expected motion gradient (B, {cfg.frames}, {cfg.motion_dim}), got {tuple(g.shape)}")
-        t = cfg.latent_steps
+        # Block-Toeplitz: the same blocks at every latent step, so any clip length in whole frame
+        # groups works, not only the training length.
+        if dim != cfg.motion_dim or n % self.stride:
+            raise ValueError(f"expected motion gradient (B, a multiple of {self.stride} frames, {cfg.motion_dim}), "
+                             f"got {tuple(g.shape)}")
+        t = n // self.stride
         a = (g.reshape(b, t, -1) @ self.down).reshape(b, t, 2 * w + 1, cfg.rank)
         a = F.pad(a, (0, 0, 0, 0, w, w))                      # zero groups beyond both ends
         # Offset i (o = i - w) reads group q + o, which sits at padded index q + i.

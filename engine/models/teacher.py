@@ -131,9 +131,25 @@ class DiffusionStep:
     z0_hat: torch.Tensor    # (B, T, V, d) the clean-latent estimate at this step
 
 
+LATENT_CLIP = 4.0  # the latent has unit variance: a clean estimate beyond 4 std is an error
+
+
+def clean_estimate(z: torch.Tensor, eps: torch.Tensor, a_t: torch.Tensor,
+                   clip: float | None = LATENT_CLIP) -> tuple[torch.Tensor, torch.Tensor]:
+    """z0_hat from z_tau and the predicted noise, clipped to [-clip, clip], and the noise made
+    consistent with the clipped estimate. At high noise z0_hat = (z - sqrt(1-a) eps) / sqrt(a)
+    multiplies any error in eps by 1/sqrt(a) (~150 at tau = 1), which clipping contains
+    (as DDPM's clip_denoised does)."""
+    z0_hat = (z - (1 - a_t).sqrt() * eps) / a_t.sqrt()
+    if clip is None:
+        return z0_hat, eps
+    z0_hat = z0_hat.clamp(-clip, clip)
+    return z0_hat, (z - a_t.sqrt() * z0_hat) / (1 - a_t).sqrt()
+
+
 def ddpm_sample(eps_field: Field, schedule: VPSchedule, shape: tuple[int, ...],
                 cond: Conditioning | None = None, entity_pos: torch.Tensor | None = None,
-                generator: torch.Generator | None = None) -> Iterator[DiffusionStep]:
+                generator: torch.Generator | None = None, clip: float | None = LATENT_CLIP) -> Iterator[DiffusionStep]:
     """Ancestral DDPM over all `schedule.steps` discrete steps. Yields a DiffusionStep per step;
     the last one's z is the sample."""
     n = schedule.steps
@@ -146,7 +162,7 @@ def ddpm_sample(eps_field: Field, schedule: VPSchedule, shape: tuple[int, ...],
         alpha = a_t / a_prev
         with torch.no_grad():
             eps = eps_field(z, taus[i].expand(shape[0]), cond, entity_pos)
-        z0_hat = (z - (1 - a_t).sqrt() * eps) / a_t.sqrt()
+        z0_hat, eps = clean_estimate(z, eps, a_t, clip)
         mean = (z - (1 - alpha) / (1 - a_t).sqrt() * eps) / alpha.sqrt()
         if i > 0:
             var = (1 - alpha) * (1 - a_prev) / (1 - a_t)
@@ -158,7 +174,7 @@ def ddpm_sample(eps_field: Field, schedule: VPSchedule, shape: tuple[int, ...],
 
 def ddim_sample(eps_field: Field, schedule: VPSchedule, shape: tuple[int, ...], num_steps: int = 50,
                 cond: Conditioning | None = None, entity_pos: torch.Tensor | None = None,
-                generator: torch.Generator | None = None) -> Iterator[DiffusionStep]:
+                generator: torch.Generator | None = None, clip: float | None = LATENT_CLIP) -> Iterator[DiffusionStep]:
     """Deterministic DDIM (eta = 0) on `num_steps` evenly spaced taus from 1 to 0; only the
     initial noise is random, so a seeded generator gives the same sample every time."""
     taus = torch.linspace(1.0, 0.0, num_steps + 1)
@@ -168,7 +184,7 @@ def ddim_sample(eps_field: Field, schedule: VPSchedule, shape: tuple[int, ...], 
         a_t, a_next = schedule.alpha_bar(tau), schedule.alpha_bar(tau_next)
         with torch.no_grad():
             eps = eps_field(z, tau.expand(shape[0]), cond, entity_pos)
-        z0_hat = (z - (1 - a_t).sqrt() * eps) / a_t.sqrt()
+        z0_hat, eps = clean_estimate(z, eps, a_t, clip)
         z = a_next.sqrt() * z0_hat + (1 - a_next).sqrt() * eps
         yield DiffusionStep(k, num_steps, float(tau_next), z, z0_hat)
 
