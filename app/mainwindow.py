@@ -344,25 +344,29 @@ class MainWindow(QMainWindow):
             path, _ = QFileDialog.getOpenFileName(self, "Open Storyboard", self._last_dir(), FILE_FILTER)
             if not path:
                 return False
-        try:
-            storyboard = Storyboard.load(path)
-        except StoryboardError as e:
-            self.error(f"Cannot open {Path(path).name}: {e}")
+        storyboard = self._load_storyboard(path, Path(path).name)
+        if storyboard is None:
             return False
         self.doc.replace_storyboard(storyboard, Path(path))
         self._remember(Path(path))
         self.statusBar().showMessage(f"Opened {path}", 5000)
         return True
 
+    def _load_storyboard(self, path: str | Path, what: str) -> Storyboard | None:
+        """The storyboard at path, or None after telling the user why not (one-line dialog)."""
+        try:
+            return Storyboard.load(path)
+        except StoryboardError as e:
+            self.error(f"Cannot open {what}: {e}")
+            return None
+
     def open_example(self, path: Path) -> bool:
         """Open a shipped example as a new, untitled storyboard: Save then asks where, so the
         example itself is never overwritten."""
         if not self.maybe_save():
             return False
-        try:
-            storyboard = Storyboard.load(path)
-        except StoryboardError as e:
-            self.error(f"Cannot open the example {Path(path).name}: {e}")
+        storyboard = self._load_storyboard(path, f"the example {Path(path).name}")
+        if storyboard is None:
             return False
         self.doc.replace_storyboard(storyboard, None)
         self.statusBar().showMessage(f"Opened the example \u201c{storyboard.text or Path(path).stem}\u201d; "
