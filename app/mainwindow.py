@@ -18,6 +18,7 @@ from PySide6.QtWidgets import (QDockWidget, QFileDialog, QHBoxLayout, QLabel, QM
 
 from engine.clip import MotionClip
 from engine.export import export_gltf, export_npz, export_object_path
+from engine.render import SceneOptions
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard, StoryboardError
 
@@ -154,6 +155,14 @@ class MainWindow(QMainWindow):
         self.act_onion = a("Onion Skin", lambda on: self._set_onion(on), tip="Show the generated motion under the sketch")
         self.act_onion.setCheckable(True)
         self.act_onion.setChecked(True)
+        # 3D overlays an artist may want out of the way while judging the motion itself.
+        self.overlay_actions = {}
+        for name, label in (("ghosts", "3D Keyframe Ghosts"), ("target_paths", "3D Sketched Paths"),
+                            ("generated_paths", "3D Generated Paths")):
+            act = a(label, lambda on, name=name: self.viewport.set_options(**{name: on}))
+            act.setCheckable(True)
+            act.setChecked(getattr(SceneOptions(), name))
+            self.overlay_actions[name] = act
 
     def _build_docks(self) -> None:
         self.setDockOptions(QMainWindow.AnimatedDocks | QMainWindow.AllowNestedDocks)
@@ -230,6 +239,7 @@ class MainWindow(QMainWindow):
         gen.addActions([self.act_generate, self.act_cancel])
         view = bar.addMenu("&View")
         view.addAction(self.act_onion)
+        view.addActions(list(self.overlay_actions.values()))
         view.addSeparator()
         for dock in (self.timeline_dock, self.viewport_dock, self.properties_dock):
             view.addAction(dock.toggleViewAction())

@@ -29,12 +29,15 @@ Keys: F frames all; Space requests play / pause, Left / Right request a one-fram
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 from PySide6.QtCore import QPointF, Qt, QTimer, Signal, Slot
 from PySide6.QtGui import QColor, QImage, QPainter
 from PySide6.QtWidgets import QWidget
 
 from engine.clip import MotionClip
-from engine.render import OrbitCamera, RenderConfig, RenderUnavailableError, SceneRenderer, scene_from_clip
+from engine.render import (OrbitCamera, RenderConfig, RenderUnavailableError, SceneOptions, SceneRenderer,
+                           scene_from_clip)
 from engine.storyboard import Storyboard
 
 ORBIT_DEGREES_PER_PIXEL = 0.4
@@ -61,6 +64,7 @@ class Viewport(QWidget):
         self._image: QImage | None = None
         self._pixels = None  # the renderer's buffer that _image points into
         self._dirty = True
+        self.options = SceneOptions()  # which overlays (ghosts, target and generated paths) to draw
         self._drag_pos: QPointF | None = None
         self._drag_mode: str | None = None  # "orbit" or "pan" while a button is held
 
@@ -89,6 +93,11 @@ class Viewport(QWidget):
         self._storyboard = storyboard
         self.update_view()
 
+    def set_options(self, **overlays: bool) -> None:
+        """Show or hide overlays by SceneOptions field, e.g. set_options(ghosts=False)."""
+        self.options = replace(self.options, **overlays)
+        self.update_view()
+
     @Slot(int)
     def set_frame(self, frame: int) -> None:
         shown = self.frame
@@ -97,7 +106,7 @@ class Viewport(QWidget):
             self.update_view()
 
     def frame_all(self) -> None:
-        scene = scene_from_clip(self._clip, self.frame, self._storyboard)
+        scene = scene_from_clip(self._clip, self.frame, self._storyboard, self.options)
         if self._clip is not None:
             scene.people = self._clip.joints.reshape(-1, 22, 3)  # the whole motion, not one frame
         self.camera.frame_all(scene.bounds(), self.width() / max(1, self.height()))
@@ -173,7 +182,8 @@ class Viewport(QWidget):
         if self._ensure_renderer() is None:
             return
         try:
-            pixels = self._renderer.render(scene_from_clip(self._clip, self.frame, self._storyboard), self.camera)
+            pixels = self._renderer.render(scene_from_clip(self._clip, self.frame, self._storyboard, self.options),
+                                           self.camera)
         except RenderUnavailableError as e:
             self._error, self._image = str(e), None
             return
