@@ -103,13 +103,14 @@ def _sampler_config(args):
 def cmd_generate(args) -> int:
     from pathlib import Path
 
-    from .export import export_bvh_dir
+    from .export import export_requested
     from .generate import generate, print_summary, summary, write_outputs
     from .models.bundle import BundleError, load_bundle, load_default
     from .sampling.sampler import SamplerError
     from .storyboard import Storyboard
     sb = Storyboard.load(args.storyboard)
     config = _sampler_config(args)
+    Path(args.output).parent.mkdir(parents=True, exist_ok=True)  # fail before generating, not after
     try:
         bundle = None if args.method == "retrieval" else (load_bundle(args.checkpoint) if args.checkpoint
                                                           else load_default())
@@ -117,8 +118,10 @@ def cmd_generate(args) -> int:
     except (BundleError, SamplerError) as e:
         raise UserError(str(e)) from None
     written = write_outputs(result, Path(args.output))
-    if args.bvh_dir:
-        written += export_bvh_dir(result.clips[0], args.bvh_dir)
+    try:
+        written += export_requested(result.clips[0], args)
+    except ValueError as e:  # e.g. --object-csv for a storyboard without an object
+        raise UserError(str(e)) from None
     print(f"wrote {', '.join(str(p) for p in written)}", file=sys.stderr)
     print_summary(summary(result, sb, args.method))
     return 0
@@ -136,6 +139,7 @@ def cmd_demo(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .export import add_export_arguments
     p = argparse.ArgumentParser(prog="sketch2colab", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -200,7 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-energy", action="store_true", help="no energy guidance (ablation)")
     s.add_argument("--no-ctmc", action="store_true", help="no CTMC phase planning (ablation)")
     s.add_argument("--variations", type=int, default=1, help="K variations in one batch")
-    s.add_argument("--bvh-dir", metavar="DIR", help="also write one BVH per person here")
+    add_export_arguments(s)  # --npz, --bvh-dir, --object-csv, --glb of the first variation
     s.add_argument("--checkpoint", metavar="BUNDLE.pt", help="model bundle (default: the shipped one)")
     s.add_argument("--log-steps", action="store_true", help="one line per solver step instead of a bar")
     s.set_defaults(func=cmd_generate)
@@ -236,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args) or 0
-    except (UserError, StoryboardError, ClipError, FileNotFoundError) as e:
+    except (UserError, StoryboardError, ClipError, OSError) as e:  # OSError: missing files, permissions
         print(f"error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

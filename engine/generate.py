@@ -9,27 +9,16 @@ from __future__ import annotations
 
 import json
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Generator, TextIO
 
 import numpy as np
 
-from .clip import MotionClip
 from .metrics import adherence
 from .sampling.events import GenerationResult, StepEvent
 from .storyboard import Storyboard
 
 RETRIEVAL = "retrieval"
-
-
-@dataclass
-class RetrievalSource:
-    """Where the retrieval baseline finds its clips when no index file is given: a fresh set of
-    synthesized scenes (deterministic, so every run retrieves from the same library). Their seeds
-    lie in the training split (engine.dataset.split_files: seed % 1000 >= 100), never the test's."""
-    clips: int = 60
-    seed: int = 200
 
 
 def run_generation(gen: Generator[StepEvent, None, GenerationResult], out: TextIO | None = sys.stderr,
@@ -59,11 +48,9 @@ def _progress(event: StepEvent, out: TextIO, log_steps: bool) -> None:
     out.flush()
 
 
-def retrieval_generator(storyboard: Storyboard, seed: int, source: RetrievalSource = RetrievalSource()):
-    from .baselines.retrieval import IndexConfig, RetrievalIndex, sample_retrieval
-    from .synth import SCENARIOS, synthesize
-    clips = [synthesize(SCENARIOS[i % len(SCENARIOS)], source.seed + i) for i in range(source.clips)]
-    index = RetrievalIndex.build(clips, IndexConfig())
+def retrieval_generator(storyboard: Storyboard, seed: int):
+    from .baselines.retrieval import default_index, sample_retrieval
+    index, _ = default_index()
     return sample_retrieval(index, storyboard, seed=seed)
 
 
@@ -100,7 +87,3 @@ def write_outputs(result: GenerationResult, output: Path) -> list[Path]:
 
 def print_summary(figures: dict, out: TextIO = sys.stdout) -> None:
     out.write(json.dumps(figures) + "\n")
-
-
-def load_clip(path: str | Path) -> MotionClip:
-    return MotionClip.load(path)

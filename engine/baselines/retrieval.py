@@ -318,6 +318,26 @@ def retrieve_adapt(index: RetrievalIndex, storyboard: Storyboard, seed: int = 0,
     return adapt(index, retrieve(index, storyboard, config, seed), storyboard, config).clip
 
 
+DEFAULT_DATA = Path(__file__).resolve().parents[2] / "data"
+LIBRARY_SEEDS = range(100, 160)   # synth split bucket 100-159: training seeds, never the test split's
+
+
+def default_index(data_dir: Path = DEFAULT_DATA, clips: int = 60) -> tuple["RetrievalIndex", str]:
+    """RetrievAdapt's library when no index file is given: the first `clips` training-split clips
+    of data_dir/synth, or the same number of scenes synthesized afresh with training seeds (a
+    fresh clone has no data/). Never the test split. Returns the index and a line saying which."""
+    from ..dataset import split_files
+    from ..synth import SCENARIOS, synthesize
+    synth_dir = Path(data_dir) / "synth"
+    if synth_dir.is_dir() and any(synth_dir.glob("*.npz")):
+        library = [MotionClip.load(p) for p in split_files(synth_dir).train[:clips]]
+        source = f"{len(library)} training-split clips of {synth_dir}"
+    else:
+        library = [synthesize(SCENARIOS[s % len(SCENARIOS)], s) for s in LIBRARY_SEEDS[:clips]]
+        source = f"{len(library)} scenes synthesized with training seeds {LIBRARY_SEEDS.start}+"
+    return RetrievalIndex.build(library), source
+
+
 def sample_retrieval(index: RetrievalIndex, storyboard: Storyboard, config: AdaptConfig = AdaptConfig(),
                      seed: int = 0) -> Generator[StepEvent, None, GenerationResult]:
     """The sampler's streaming contract for RetrievAdapt: one StepEvent (the finished motion,

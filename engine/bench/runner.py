@@ -18,10 +18,8 @@ from ..generate import run_generation
 from ..metrics import adherence, brier_score, contact_f1, diversity, expected_calibration_error
 from ..sampling.sampler import SamplerConfig, sample
 from ..storyboard import Storyboard
-from ..synth import SCENARIOS, synthesize
-from .protocol import REPO_ROOT, BenchItem, Protocol
+from .protocol import BenchItem, Protocol
 
-RETRIEVAL_LIBRARY_SEEDS = range(100, 160)   # split bucket 100-159: training seeds, never test
 
 
 @dataclass(frozen=True)
@@ -77,21 +75,6 @@ class RunnerConfig:
     diversity_items: int = 4            # ... on the first this many items of a protocol
     ddpm_items: int = 10                # DDPM-1000 is slow: only the first this many items
     cfg: float | None = None            # guidance weight override (None: each method's default)
-
-
-def build_retrieval_index(data_dir=REPO_ROOT / "data", clips: int = 60) -> tuple[RetrievalIndex, str]:
-    """RetrievAdapt's library: the first `clips` training-split clips of data/synth, or the same
-    scenes synthesized afresh (seeds RETRIEVAL_LIBRARY_SEEDS). Never the test split: the CLI's
-    default library (engine.generate.RetrievalSource, seeds 1000+) overlaps it."""
-    from ..dataset import split_files
-    synth_dir = data_dir / "synth"
-    if synth_dir.is_dir() and any(synth_dir.glob("*.npz")):
-        library = [MotionClip.load(p) for p in split_files(synth_dir).train[:clips]]
-        source = f"{len(library)} training-split clips of data/synth"
-    else:
-        library = [synthesize(SCENARIOS[s % len(SCENARIOS)], s) for s in RETRIEVAL_LIBRARY_SEEDS[:clips]]
-        source = f"{len(library)} scenes synthesized with training seeds {RETRIEVAL_LIBRARY_SEEDS.start}+"
-    return RetrievalIndex.build(library), source
 
 
 def generate(bundle, method: Method, storyboard: Storyboard, seed: int = 0, variations: int = 1,

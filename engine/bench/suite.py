@@ -17,9 +17,10 @@ from pathlib import Path
 import torch
 
 from . import diagnostics, plots
+from ..baselines.retrieval import default_index
 from .protocol import REPO_ROOT, ProtocolConfig, build_protocols
 from .runner import (ABLATIONS, ALL_METHODS, OURS, RETRIEV_ADAPT, TEACHER_DDIM, TEACHER_DDPM, RunnerConfig,
-                     build_retrieval_index, generate, run_protocol)
+                     generate, run_protocol)
 from .scores import by_key, by_method, paired
 from .speed import SpeedConfig, speed_table
 from .targets import check_targets
@@ -98,7 +99,7 @@ def run_bench(bundle, config: BenchConfig, evaluator=None, figures_dir: Path | N
                      "that the benchmark runs; speed figures are representative of the architecture.")
     index = None
     if any(m.sampler is None for m in config.methods + config.noise_methods + config.speed_methods):
-        index, library = build_retrieval_index(config.protocol.data_dir, config.retrieval_clips)
+        index, library = default_index(config.protocol.data_dir, config.retrieval_clips)
         notes.append(f"RetrievAdapt library: {library}.")
     protocols = build_protocols(config.protocol)
     out: dict = {"header": {"date": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "machine": machine(), "git": git_revision(),

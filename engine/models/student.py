@@ -62,10 +62,6 @@ class RectifiedFlowStudent(nn.Module):
         super().__init__()
         self.backbone = backbone
 
-    @property
-    def num_phases(self) -> int:
-        return self.backbone.cfg.n_heads_out
-
     def subfields(self, z: torch.Tensor, t: torch.Tensor, cond: Conditioning | None = None,
                   entity_pos: torch.Tensor | None = None) -> torch.Tensor:
         """Phase sub-fields (B, S, T_lat, V, d) at z_t (B, T_lat, V, d), t (B,)."""

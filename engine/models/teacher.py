@@ -46,10 +46,6 @@ class VPSchedule:
         a, b = 0.5 * (self.beta_max - self.beta_min), self.beta_min
         return -2 * log_abar / (b + torch.sqrt(b * b - 4 * a * log_abar))
 
-    def noise_to_signal(self, tau: torch.Tensor) -> torch.Tensor:
-        """sigma / alpha = sqrt(1 - abar) / sqrt(abar)."""
-        return torch.sqrt(torch.expm1(-self.log_alpha_bar(tau)))
-
 
 def broadcast(x: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
     """(B,) -> (B, 1, 1, ...) matching like's rank."""

@@ -33,6 +33,8 @@ import torch
 from ..clip import MotionClip
 from ..controls import build_controls
 from ..dataset import NUM_HUMANS, fixed_controls
+from ..models.encoders import latent_energy
+from ..models.teacher import ClassifierFreeGuidance, ddim_sample, ddpm_sample
 from ..skeleton import HANDS
 from ..storyboard import Storyboard
 from .energies import ENERGIES, EnergyContext, EnergyWeights, total_energy
@@ -133,6 +135,7 @@ class _Run:
         self.enabled = TRAJECTORY_ONLY if cfg.trajectory_only else set(ENERGIES)
         self.weights = EnergyWeights()
         self.occupancy: torch.Tensor | None = None
+        self.guided_velocity = ClassifierFreeGuidance(self._student_field, cfg.cfg)
 
     # ---- shared pieces ---------------------------------------------------------------------
     def _decode(self, z: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -189,7 +192,6 @@ class _Run:
                 energy = energy + total.detach()
                 values.update({k: float(v.detach().mean()) for k, v in terms.items()})
             if cfg.use_latent:
-                from ..models.encoders import latent_energy
                 zl = z0.detach().requires_grad_(True)
                 e_lat = cfg.latent_weight * latent_energy(bundle.latent_head, zl, self.s2d, self.present)
                 grad = grad + torch.autograd.grad(e_lat.sum(), zl)[0]
@@ -235,19 +237,18 @@ class _Run:
                                 first_step_s=self.first_step or 0.0, network_evals=self.evals)
 
     # ---- student: guided Heun ODE ------------------------------------------------------------
+    def _student_field(self, z, t, cond, entity_pos):
+        """The student's velocity, its sub-fields mixed by the current CTMC occupancy (uniform
+        without CTMC); CFG stacks cond and uncond, so the occupancy is repeated to match."""
+        occupancy = self.occupancy if self.cfg.use_ctmc else None
+        if occupancy is not None:
+            occupancy = occupancy.repeat(z.shape[0] // occupancy.shape[0], 1, 1)
+        return self.bundle.student.velocity(z, t, cond, entity_pos, occupancy)
+
     def _velocity(self, z: torch.Tensor, t: float, entity_pos: torch.Tensor | None) -> torch.Tensor:
         """CFG-guided student velocity; one network evaluation (cond and uncond run as one batch)."""
-        from ..models.teacher import ClassifierFreeGuidance
-        student = self.bundle.student
-        occupancy = self.occupancy if self.cfg.use_ctmc else None
-
-        def field(zz, tt, cond, pos):
-            return student.velocity(zz, tt, cond, pos, None if occupancy is None else occupancy.repeat(
-                zz.shape[0] // occupancy.shape[0], 1, 1))
-
         self.evals += 1
-        tt = torch.full((z.shape[0],), t)
-        return ClassifierFreeGuidance(field, self.cfg.cfg)(z, tt, self.cond, entity_pos)
+        return self.guided_velocity(z, torch.full((z.shape[0],), t), self.cond, entity_pos)
 
     def student(self) -> Generator[StepEvent, None, GenerationResult]:
         cfg, b = self.cfg, self.bundle
@@ -297,7 +298,6 @@ class _Run:
 
     # ---- teacher baselines --------------------------------------------------------------------
     def teacher(self) -> Generator[StepEvent, None, GenerationResult]:
-        from ..models.teacher import ClassifierFreeGuidance, ddim_sample, ddpm_sample
         cfg, b = self.cfg, self.bundle
         shape = (cfg.variations, self.t_lat, 3, self.latent_dim)
 
