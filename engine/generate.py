@@ -21,9 +21,9 @@ from .storyboard import Storyboard
 RETRIEVAL = "retrieval"
 
 
-def run_generation(gen: Generator[StepEvent, None, GenerationResult], out: TextIO | None = sys.stderr,
+def run_generation(gen: Generator[StepEvent, None, GenerationResult], out: TextIO | None = None,
                    log_steps: bool = False) -> GenerationResult:
-    """Drive a sampler generator to the end, reporting progress on `out`."""
+    """Drive a sampler generator to the end, reporting progress on `out` (None: silent)."""
     try:
         while True:
             event = next(gen)
@@ -55,15 +55,16 @@ def retrieval_generator(storyboard: Storyboard, seed: int):
 
 
 def generate(storyboard: Storyboard, config, bundle=None, method: str = "student",
-             out: TextIO | None = sys.stderr, log_steps: bool = False) -> GenerationResult:
-    """Generate with the sampler (`config`: SamplerConfig) or the retrieval baseline."""
+             quiet: bool = False, log_steps: bool = False) -> GenerationResult:
+    """Generate with the sampler (`config`: SamplerConfig) or the retrieval baseline, reporting
+    progress on the current sys.stderr unless quiet (looked up per call: it may be swapped)."""
     if method == RETRIEVAL:
         gen = retrieval_generator(storyboard, config.seed)
     else:
         from .models.bundle import load_default
         from .sampling.sampler import sample
         gen = sample(bundle or load_default(), storyboard, config)
-    return run_generation(gen, out, log_steps)
+    return run_generation(gen, None if quiet else sys.stderr, log_steps)
 
 
 def summary(result: GenerationResult, storyboard: Storyboard, method: str) -> dict:
@@ -85,5 +86,6 @@ def write_outputs(result: GenerationResult, output: Path) -> list[Path]:
     return written
 
 
-def print_summary(figures: dict, out: TextIO = sys.stdout) -> None:
-    out.write(json.dumps(figures) + "\n")
+def print_summary(figures: dict) -> None:
+    """The command's last line: one JSON object."""
+    print(json.dumps(figures))
