@@ -97,7 +97,8 @@ def _sampler_config(args):
         raise UserError("--steps and --variations must be at least 1")
     return SamplerConfig(steps=args.steps, seed=args.seed, cfg=args.cfg,
                          method="student" if args.method == "retrieval" else args.method,
-                         variations=args.variations, use_energy=not args.no_energy, use_ctmc=not args.no_ctmc)
+                         variations=args.variations, use_energy=not args.no_energy, use_ctmc=not args.no_ctmc,
+                         finish=not args.no_finish)
 
 
 def cmd_generate(args) -> int:
@@ -203,6 +204,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--method", choices=["student", "teacher-ddpm", "teacher-ddim", "retrieval"], default="student")
     s.add_argument("--no-energy", action="store_true", help="no energy guidance (ablation)")
     s.add_argument("--no-ctmc", action="store_true", help="no CTMC phase planning (ablation)")
+    s.add_argument("--no-finish", action="store_true",
+                   help="keep the sampler's raw decode (no finishing pass: keyposes, paths, contacts, feet)")
     s.add_argument("--variations", type=int, default=1, help="K variations in one batch")
     add_export_arguments(s)  # --npz, --bvh-dir, --object-csv, --glb of the first variation
     s.add_argument("--checkpoint", metavar="BUNDLE.pt", help="model bundle (default: the shipped one)")

@@ -47,6 +47,19 @@ class Controls:
         return self.kp_mask | self.tr_mask
 
 
+def closest_on_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
+    """The nearest point of a polyline (L, D), L >= 1, to each of points (P, D) -> (P, D)."""
+    poly = np.asarray(polyline, float)
+    if len(poly) == 1:
+        poly = np.concatenate([poly, poly])
+    a, seg = poly[:-1], np.diff(poly, axis=0)                               # (S, D)
+    rel = np.asarray(points, float)[:, None] - a[None]                      # (P, S, D)
+    t = np.clip(np.sum(rel * seg, axis=-1) / np.maximum(np.sum(seg * seg, axis=-1), 1e-24), 0.0, 1.0)
+    nearest = a[None] + t[..., None] * seg                                  # (P, S, D)
+    best = np.argmin(np.linalg.norm(rel - t[..., None] * seg, axis=-1), axis=1)
+    return nearest[np.arange(len(nearest)), best]
+
+
 def resample_polyline(points: np.ndarray, count: int) -> np.ndarray:
     """(L, D) polyline -> (count, D) points evenly spaced in arc length, ends kept."""
     points = np.asarray(points, float)

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .camera import StoryboardCamera
+from .controls import closest_on_polyline
 from .objects import ObjectSpec, local_to_world, world_to_local
 from .skeleton import FEET, HANDS, JOINT_INDEX, PARENTS
 
@@ -58,14 +59,7 @@ def foot_skate_ratio(joints: np.ndarray, fps: float, window: int = 1) -> float:
 
 def point_polyline_distance(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
     """Exact distance of points (P, D) to a polyline (L, D), L >= 1 -> (P,)."""
-    poly = np.asarray(polyline, float)
-    if len(poly) == 1:
-        poly = np.concatenate([poly, poly])
-    a, seg = poly[:-1], np.diff(poly, axis=0)                               # (S, D)
-    rel = np.asarray(points, float)[:, None] - a[None]                      # (P, S, D)
-    length2 = np.sum(seg * seg, axis=-1)
-    t = np.clip(np.sum(rel * seg, axis=-1) / np.maximum(length2, 1e-24), 0.0, 1.0)
-    return np.min(np.linalg.norm(rel - t[..., None] * seg, axis=-1), axis=1)
+    return np.linalg.norm(np.asarray(points, float) - closest_on_polyline(points, polyline), axis=-1)
 
 
 def keypose_errors_2d(joints: np.ndarray, kp2d: np.ndarray, kp_mask: np.ndarray,

@@ -41,6 +41,14 @@ def axis_angle_to_matrix(aa: np.ndarray) -> np.ndarray:
     return eye + s * K + (1 - c) * (K @ K)
 
 
+def matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:
+    """Inverse of axis_angle_to_matrix, angles in [0, pi]: (..., 3, 3) -> (..., 3)."""
+    q = matrix_to_quat(R)                                   # w >= 0, so the angle is <= pi
+    s = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
+    angle = 2 * np.arctan2(s, q[..., :1])
+    return q[..., 1:] * angle / np.maximum(s, _EPS)
+
+
 def euler_to_matrix(angles_deg: np.ndarray, order: str) -> np.ndarray:
     """Intrinsic rotations in the given axis order, e.g. 'ZXY' as BVH channels list them.
 

@@ -30,10 +30,13 @@ class Method:
 
 
 OURS = Method("ours", "Ours", SamplerConfig(steps=30))
-TEACHER_DDPM = Method("teacher_ddpm", "COLLAGE Teacher (DDPM-1000)", SamplerConfig(method="teacher-ddpm"))
-TEACHER_DDIM = Method("teacher_ddim", "COLLAGE Teacher (DDIM-50)", SamplerConfig(method="teacher-ddim", steps=50))
+# The paper's baseline as it is: the teacher's samples, without our finishing pass.
+TEACHER_DDPM = Method("teacher_ddpm", "COLLAGE Teacher (DDPM-1000)", SamplerConfig(method="teacher-ddpm", finish=False))
+TEACHER_DDIM = Method("teacher_ddim", "COLLAGE Teacher (DDIM-50)",
+                      SamplerConfig(method="teacher-ddim", steps=50, finish=False))
 RETRIEV_ADAPT = Method("retrievadapt", "RetrievAdapt", None)
 ABLATIONS = (
+    Method("wo_finishing", "w/o finishing", SamplerConfig(steps=30, finish=False)),
     Method("wo_energy", "w/o Energy", SamplerConfig(steps=30, use_energy=False)),
     Method("wo_ctmc", "w/o CTMC", SamplerConfig(steps=30, use_ctmc=False)),
     Method("wo_latent", "w/o latent grounding", SamplerConfig(steps=30, use_latent=False)),

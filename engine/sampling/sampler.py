@@ -33,6 +33,7 @@ import torch
 from ..clip import MotionClip
 from ..controls import build_controls
 from ..dataset import NUM_HUMANS, fixed_controls
+from ..finishing import finish
 from ..models.encoders import latent_energy
 from ..models.teacher import ClassifierFreeGuidance, ddim_sample, ddpm_sample
 from ..skeleton import HANDS
@@ -68,6 +69,7 @@ class SamplerConfig:
     final_refine_steps: int = 4     # extra energy steps on the final latent (physics stage)
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
     langevin_step_size: float = 1e-3
+    finish: bool = True             # engine.finishing on the final clips ("w/o finishing")
     threads: int | None = None      # torch threads for this run (None: leave as is)
 
 
@@ -233,8 +235,16 @@ class _Run:
     def _result(self, z0: torch.Tensor) -> GenerationResult:
         motion = self._decode(z0)
         clips = [self._clip(motion, k) for k in range(z0.shape[0])]
+        if self.cfg.finish:
+            clips = [self._finished(clip) for clip in clips]
         return GenerationResult(clips=clips, wall_time_s=time.perf_counter() - self.start,
                                 first_step_s=self.first_step or 0.0, network_evals=self.evals)
+
+    def _finished(self, clip: MotionClip) -> MotionClip:
+        """The clip through engine.finishing, its hand contacts re-measured on the result."""
+        clip = finish(clip, self.sb)
+        contact = _hand_contact(clip.joints, clip.obj_anchors, clip.phase)
+        return replace(clip, contact=contact)
 
     # ---- student: guided Heun ODE ------------------------------------------------------------
     def _student_field(self, z, t, cond, entity_pos):

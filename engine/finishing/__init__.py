@@ -1,0 +1,73 @@
+"""Finishing: the generated motion made to honour the storyboard's hard constraints.
+
+The guided sampler brings the motion near the sketch; finishing, as an animator's clean-up pass
+would, makes it exact where a 2D sketch and physics say what is right, by small kinematic edits
+that keep each person's bone lengths:
+
+1. one skeleton per person (bone offsets fitted to the generated joints; the decoder predicts
+   joints freely, so bones stretch a little from frame to frame);
+2. keyposes and pelvis paths, by motion warping (warp.py);
+3. feet standing on the ground, planted while in stance, stepping between plants (feet.py);
+4. the object as a rigid body that moves only in the hands that hold it, and the arms reaching
+   its grips (or the partner's hand) over every contact span (contacts.py).
+Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..clip import MotionClip
+from ..rotations import matrix_to_6d
+from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
+from ..storyboard import Storyboard
+from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts
+from .feet import FeetConfig, lock_feet, settle_on_ground
+from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
+
+
+@dataclass
+class FinishConfig:
+    keyposes: bool = True
+    paths: bool = True
+    contacts: bool = True
+    feet: bool = True
+    warp: WarpConfig = field(default_factory=WarpConfig)
+    contact: ContactConfig = field(default_factory=ContactConfig)
+    foot: FeetConfig = field(default_factory=FeetConfig)
+
+
+def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Joints (N, H, 22, 3) -> (the same motion on one rigid skeleton per person, its bone
+    offsets (H, 22, 3)). With a storyboard, a body its keyposes show larger is scaled up
+    (pelvis height with it): the decoder draws bodies towards the average size."""
+    fixed, all_offsets = [], []
+    for h in range(joints.shape[1]):
+        offsets = fit_offsets(joints[:, h])
+        scale = sketched_scale(offsets, storyboard, h) if storyboard is not None else 1.0
+        root = joints[:, h, 0] * (1.0, scale, 1.0)
+        offsets = offsets * scale
+        fixed.append(forward_kinematics(root, inverse_kinematics(joints[:, h], offsets), offsets))
+        all_offsets.append(offsets)
+    return np.stack(fixed, 1), np.stack(all_offsets)
+
+
+def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig()) -> MotionClip:
+    """The clip (people in the storyboard's agent order) with its constraints made exact."""
+    joints, offsets = consistent_skeleton(np.asarray(clip.joints, float), storyboard)
+    if config.keyposes:
+        joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)
+    if config.paths:
+        joints = follow_paths(joints, storyboard, config.warp)
+    if config.feet:  # before the object: hands that hold it must not move after it is placed
+        joints = lock_feet(settle_on_ground(joints, config.foot), clip.fps, config.foot)
+    kw = {}
+    if config.contacts and clip.obj_pose is not None and storyboard.objects:
+        pose = hold_object(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
+        kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
+    if config.contacts:
+        joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact)
+    rotations = np.stack([inverse_kinematics(joints[:, h], offsets[h]) for h in range(joints.shape[1])], 1)
+    return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
+                   bone_offsets=offsets.astype(np.float32), **kw)

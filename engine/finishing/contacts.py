@@ -1,0 +1,266 @@
+"""Contacts: make held objects follow the hands that hold them, and put the hands on their grips.
+
+Two steps, run on decoded joint positions (N frames, H people, 22 joints, world metres, Y up):
+
+1. `hold_object` rebuilds each object's pose from the storyboard's contacts: a rigid body that
+   moves only while held (an upright yaw + translation fit of its grips to the holding wrists),
+   resting on the ground before, between and after holds.
+2. `reach_contacts` moves each contact's wrist onto its grip (or the other person's hand) by
+   exact two-bone IK from the shoulder, eased in before the span and out after it. Only elbows
+   and wrists move, and every bone keeps its length.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from ..metrics import BONES, body_points
+from ..objects import ObjectSpec, local_to_world, world_to_local
+from ..rotations import normalize, quat_to_matrix
+from ..skeleton import HANDS, JOINT_INDEX, JOINT_NAMES
+from ..storyboard import HANDS as HAND_NAMES
+from ..storyboard import Storyboard
+from ..synth.props import pose_array
+from ..synth.reach import UP, two_bone_ik, yaw_matrix
+from ..synth.trajectory import blend_yaw, smoothstep
+
+SHOULDERS = (JOINT_INDEX["l_shoulder"], JOINT_INDEX["r_shoulder"])
+ELBOWS = (JOINT_INDEX["l_elbow"], JOINT_INDEX["r_elbow"])
+GRAVITY = 9.81  # m/s^2
+_ARM = [*ELBOWS, *HANDS]
+# engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
+BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
+                        + [child not in _ARM for _, child in BONES])
+
+
+@dataclass
+class ContactConfig:
+    blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
+    lift_frames: int = 6           # frames a resting object eases into the holding hands' fit
+    smooth_sigma: float = 1.5      # frames: Gaussian smoothing of a held object's fitted path
+    rest_height: float = 0.0       # m the base of a resting object sits above the ground
+    hand_gap: float = 0.09         # m between two clasped wrists (the synthesizer's handshake grip)
+    min_spread: float = 1e-4       # m^2: grip spread below which the yaw fit is undefined (one hand)
+    clear_iterations: int = 4      # pushes of a held object out of its holders' bodies (0: none)
+
+
+def _anchor_table(storyboard: Storyboard) -> np.ndarray:
+    """Every object's local anchors padded to the longest list by repeating its last one:
+    (O, K, 3), K as in engine.controls (flat anchor index o * K + k)."""
+    k_max = max([len(o.spec.anchors) for o in storyboard.objects] + [1])
+    padded = [np.concatenate([a, np.repeat(a[-1:], k_max - len(a), axis=0)])
+              for a in (o.spec.anchors for o in storyboard.objects)]
+    return np.array(padded).reshape(-1, k_max, 3)
+
+
+def object_anchors(obj_pose: np.ndarray, storyboard: Storyboard) -> np.ndarray:
+    """World grip positions of every object: obj_pose (N, O, 7) -> (N, O, K, 3)."""
+    return local_to_world(_anchor_table(storyboard)[None], np.asarray(obj_pose, float))
+
+
+def _yaw_of(quat: np.ndarray) -> np.ndarray:
+    """Heading of a pose's local +X about +Y: (..., 4) wxyz -> (...)."""
+    x_axis = quat_to_matrix(quat)[..., :, 0]
+    return np.arctan2(-x_axis[..., 2], x_axis[..., 0])
+
+
+def _grounded(position: np.ndarray, config: ContactConfig) -> np.ndarray:
+    """The same horizontal place (3,), resting on the ground."""
+    return np.array([position[0], config.rest_height, position[2]])
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Inclusive [start, end] frame spans where mask (N,) is True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
+
+
+def _fit_yaw(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray,
+             min_spread: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame, the heading that best turns the local grips onto the holding wrists (weighted
+    upright Procrustes). Upright because a yaw-only fit stays defined with both hands on one end
+    and carried boxes and tables stay level. wrists, grips (N, P, 3); held (N, P) bool.
+    Returns yaw (N,) and where it is defined (N,): two or more grips spread apart."""
+    w = held[..., None]
+    count = np.maximum(w.sum(axis=1, keepdims=True), 1)
+    p = w * (wrists - np.sum(w * wrists, axis=1, keepdims=True) / count)
+    a = grips - np.sum(w * grips, axis=1, keepdims=True) / count
+    # yaw_matrix turns (x, z) into (c x + s z, -s x + c z); maximise sum p . R a over the angle.
+    sin = np.sum(p[..., 0] * a[..., 2] - p[..., 2] * a[..., 0], axis=1)
+    cos = np.sum(p[..., 0] * a[..., 0] + p[..., 2] * a[..., 2], axis=1)
+    return np.arctan2(sin, cos), np.hypot(sin, cos) > min_spread
+
+
+def _fit_position(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """Object origin (N, 3) that puts the mean held grip, turned by yaw (N,), on the mean wrist."""
+    w = held[..., None]
+    count = np.maximum(w.sum(axis=1), 1)
+    turned = np.einsum("nij,nj->ni", yaw_matrix(yaw), np.sum(w * grips, axis=1))
+    return (np.sum(w * wrists, axis=1) - turned) / count
+
+
+def _forward(joints: np.ndarray) -> np.ndarray:
+    """Unit horizontal facing direction from the shoulders: (..., 22, 3) -> (..., 3)."""
+    return normalize(np.cross(joints[..., SHOULDERS[0], :] - joints[..., SHOULDERS[1], :], UP))
+
+
+def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints: np.ndarray,
+                      holding: np.ndarray, iterations: int) -> np.ndarray:
+    """Push a held object (pos (N, 3), yaw (N,)) out in front of each holder (joints
+    (N, H, 22, 3), holding (N, H) bool) until no body sphere but the arms' is inside it: decoded
+    hands often hang by the hips, and an object fitted to them would sit in the pelvis. Pushes
+    from holders facing each other cancel (there is no room between them). Returns pos (N, 3)."""
+    n = len(pos)
+    points, radii = body_points(joints)
+    points, radii = points[:, :, BODY_SPHERES], radii[BODY_SPHERES]   # (N, H, S, 3), (S,)
+    away = _forward(joints)                                           # (N, H, 3)
+    for _ in range(iterations):
+        local = world_to_local(points.reshape(n, -1, 3), pose_array(pos, yaw)).reshape(points.shape)
+        depth = np.max(radii - spec.sdf_local(local), axis=-1)         # (N, H)
+        pos = pos + np.sum(np.where(holding, np.maximum(depth, 0), 0)[..., None] * away, axis=1)
+    return pos
+
+
+def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
+              spec: ObjectSpec, fps: float, config: ContactConfig) -> np.ndarray:
+    """One object's pose (N, 7) from joints (N, H, 22, 3), the local grip each hand holds
+    (N, 2H, 3) where held (N, 2H), and the decoded pose (N, 7)."""
+    n, h = joints.shape[:2]
+    wrists = joints[:, :, list(HANDS)].reshape(n, 2 * h, 3)
+    decoded_yaw = _yaw_of(decoded[:, 3:])
+    still_yaw = np.arctan2(np.mean(np.sin(decoded_yaw)), np.mean(np.cos(decoded_yaw)))
+    spans = _runs(held.any(axis=1))
+    if not spans:  # never held: a still object where it was decoded, on the ground
+        return pose_array(np.tile(_grounded(np.median(decoded[:, :3], axis=0), config), (n, 1)),
+                          np.full(n, still_yaw))
+
+    fit_yaw, defined = _fit_yaw(wrists, grips, held, config.min_spread)
+    # One hand cannot turn the object: keep the last defined yaw (before any, the first one).
+    if defined.any():
+        last = np.maximum.accumulate(np.where(defined, np.arange(n), -1))
+        fit_yaw = fit_yaw[np.where(last >= 0, last, np.argmax(defined))]
+    else:
+        fit_yaw = np.full(n, still_yaw)
+    fit_pos = _fit_position(wrists, grips, held, fit_yaw)
+    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, held.reshape(n, h, 2).any(axis=-1),
+                                config.clear_iterations)
+
+    pos, yaw = np.empty((n, 3)), np.empty(n)
+    first = spans[0][0]
+    # Before the first hold it rests where it is picked up.
+    pos[:first], yaw[:first] = _grounded(fit_pos[first], config), fit_yaw[first]
+    for start, end in spans:
+        held_pos = gaussian_filter1d(fit_pos[start:end + 1], config.smooth_sigma, axis=0, mode="nearest")
+        held_yaw = gaussian_filter1d(np.unwrap(fit_yaw[start:end + 1]), config.smooth_sigma, mode="nearest")
+        held_pos[:, 1] = np.maximum(held_pos[:, 1], config.rest_height)  # never through the floor
+        if start > 0:  # lifted from where it lay over a few frames, not popped into the hands
+            w = smoothstep(np.arange(end - start + 1) / max(config.lift_frames, 1))
+            held_pos = pos[start - 1] + w[:, None] * (held_pos - pos[start - 1])
+            held_yaw = blend_yaw(yaw[start - 1], held_yaw, w)
+        pos[start:end + 1], yaw[start:end + 1] = held_pos, held_yaw
+        # Released in the air, it drops under gravity to the ground and rests there until the
+        # next hold (or the end).
+        t = np.arange(1, n - end) / fps
+        pos[end + 1:] = held_pos[-1]
+        pos[end + 1:, 1] = np.maximum(held_pos[-1, 1] - 0.5 * GRAVITY * t ** 2, config.rest_height)
+        yaw[end + 1:] = held_yaw[-1]
+    return pose_array(pos, yaw)
+
+
+def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,
+                config: ContactConfig = ContactConfig()) -> np.ndarray:
+    """Object poses that follow the storyboard's holding hands and otherwise rest on the ground.
+
+    joints (N, H, 22, 3) in the storyboard's agent order; obj_pose (N, O, 7) decoded poses in its
+    object order (only used for objects nobody holds). Returns (N, O, 7) upright poses.
+    """
+    joints, obj_pose = np.asarray(joints, float), np.asarray(obj_pose, float)
+    n, h = joints.shape[:2]
+    table = _anchor_table(storyboard)
+    out = np.empty_like(obj_pose)
+    for o in range(obj_pose.shape[1]):
+        held = np.zeros((n, 2 * h), bool)
+        grips = np.zeros((n, 2 * h, 3))
+        for c in storyboard.contacts:
+            if c.object is None or storyboard.object_index(c.object) != o:
+                continue
+            hand = 2 * storyboard.agent_index(c.agent) + HAND_NAMES.index(c.hand)
+            held[c.start:c.end + 1, hand] = True
+            grips[c.start:c.end + 1, hand] = table[o, c.anchor]
+        out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
+                              storyboard.fps, config)
+    return out
+
+
+def _span_weight(n: int, start: int, end: int, blend: int) -> np.ndarray:
+    """1 on [start, end], easing smoothly to 0 over `blend` frames either side. -> (N,)."""
+    outside = np.maximum(np.maximum(start - np.arange(n), np.arange(n) - end), 0)
+    return smoothstep(1.0 - outside / (blend + 1))
+
+
+def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboard: Storyboard,
+                     config: ContactConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Where each wrist should be and how much: targets (N, H, 2, 3), weights (N, H, 2).
+    Outside a span the target stays where it was at the span's nearer end."""
+    n, h = joints.shape[:2]
+    wrists = joints[:, :, list(HANDS)]
+    target, weight = np.zeros((n, h, 2, 3)), np.zeros((n, h, 2))
+    k = _anchor_table(storyboard).shape[1]
+
+    def put(agent: int, side: int, goal: np.ndarray, w: np.ndarray) -> None:
+        stronger = w > weight[:, agent, side]
+        target[stronger, agent, side] = goal[stronger]
+        weight[stronger, agent, side] = w[stronger]
+
+    for c in storyboard.contacts:
+        frames = np.clip(np.arange(n), c.start, c.end)
+        w = _span_weight(n, c.start, c.end, config.blend_frames)
+        a, s = storyboard.agent_index(c.agent), HAND_NAMES.index(c.hand)
+        if c.object is not None:
+            if obj_anchors is None:
+                raise ValueError("the storyboard has object contacts but no object anchors were given")
+            flat = storyboard.object_index(c.object) * k + c.anchor
+            put(a, s, obj_anchors.reshape(n, -1, 3)[frames, flat], w)
+            continue
+        b, t = storyboard.agent_index(c.other_agent), HAND_NAMES.index(c.other_hand)
+        mid = 0.5 * (wrists[frames, a, s] + wrists[frames, b, t])
+        # Clasped hands sit side by side, a hand's width apart along the line between the people.
+        apart = normalize((joints[frames, b, 0] - joints[frames, a, 0]) * [1, 0, 1]) * config.hand_gap / 2
+        put(a, s, mid - apart, w)
+        put(b, t, mid + apart, w)
+    return target, weight
+
+
+def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboard: Storyboard,
+                   config: ContactConfig = ContactConfig()) -> np.ndarray:
+    """Put every contact's wrist on its target by two-bone IK from the fixed shoulder.
+
+    joints (N, H, 22, 3); obj_anchors (N, O, K, 3) (see object_anchors), or None when the
+    storyboard has only hand-to-hand contacts. Returns new joints (N, H, 22, 3): elbows and
+    wrists of contact arms move, blended in over `blend_frames` before each span and out after;
+    bone lengths are kept exactly; a target out of reach gets the straightened arm pointing at it.
+    """
+    joints = np.asarray(joints, float)
+    target, weight = _contact_targets(joints, obj_anchors, storyboard, config)
+    out = joints.copy()
+    forward = _forward(joints)
+    for side in range(2):
+        moving = weight[..., side] > 0                                    # (N, H)
+        shoulder, elbow, wrist = (joints[..., j, :][moving]
+                                  for j in (SHOULDERS[side], ELBOWS[side], HANDS[side]))
+        upper = np.linalg.norm(elbow - shoulder, axis=-1, keepdims=True)
+        lower = np.linalg.norm(wrist - elbow, axis=-1, keepdims=True)
+        w = weight[..., side][moving][:, None]
+        goal = wrist + w * (target[:, :, side][moving] - wrist)
+        # Bend the elbow the way it bends now; a straight arm bends down and back.
+        axis = normalize(goal - shoulder)
+        bend = elbow - shoulder
+        bend = bend - np.sum(bend * axis, axis=-1, keepdims=True) * axis
+        fallback = -UP - forward[moving]
+        pole = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-3 * upper, bend, fallback)
+        new_elbow, new_wrist = two_bone_ik(shoulder, goal, upper, lower, pole)
+        out[..., ELBOWS[side], :][moving] = new_elbow
+        out[..., HANDS[side], :][moving] = new_wrist
+    return out

@@ -1,0 +1,172 @@
+"""Feet on the ground: settle each person onto the floor, then lock planted feet in place.
+
+Classic motion cleanup on world joint positions (N, H, 22, 3), metres, Y up, ground y = 0.
+`settle_on_ground` lifts or lowers the whole body so that the lower foot stands on the floor;
+`lock_feet` finds each foot's stance intervals (low and slow), pins the foot there and solves
+the leg from the fixed hip by exact two-bone IK. Every bone keeps its length: the knee and
+ankle come from the IK, the foot joint rides rigidly on the ankle. Run settle first: stance
+detection reads absolute heights.
+
+A foot that glides along the floor instead of stepping (the generator's usual fault) gets
+steps: its stance is cut when the foot has drifted `max_drift` from where it was planted, and
+a gap between two stances that never leaves the floor becomes a lifted arc from one plant to
+the next (the second foot's step waits for the first to land, so people walk, not hop). Feet
+that already swing clear of the floor keep their own swing; good motion passes unchanged.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import distance_transform_edt, gaussian_filter1d, maximum_filter1d
+
+from ..rotations import normalize
+from ..skeleton import ANKLES, FEET, JOINT_INDEX
+from ..synth.reach import UP, two_bone_ik
+
+HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
+KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
+
+
+@dataclass
+class FeetConfig:
+    """Thresholds of the feet finishing; durations in frames, tuned at the project's 20 fps."""
+    # Foot joint height when standing (the rest skeleton's; EnergyConfig.foot_height).
+    foot_height: float = 0.02        # m
+    # A foot may be planted while its joint is under this height (metrics' contact height).
+    stance_height: float = 0.05      # m
+    # Hysteresis on the foot's speed: a stance starts under stance_speed and lasts while under
+    # release_speed. A swinging foot moves at 2-4 m/s; a low foot well below that is planted,
+    # however much it slides (the metric's skate speed is 0.5 m/s).
+    stance_speed: float = 1.0        # m/s
+    release_speed: float = 2.0       # m/s
+    speed_sigma: float = 1.0         # frames; smoothing of the foot path before its speed
+    min_stance_frames: int = 3       # shorter stances are passing touches, left alone
+    blend_frames: int = 3            # ramp in and out of a lock, so the foot never pops
+    # A gliding foot is re-planted once it has drifted this far, after a step of step_frames.
+    max_drift: float = 0.3           # m
+    step_frames: int = 4
+    step_height: float = 0.08        # m; peak of a made-up step (the synthesizer's swing lift)
+    max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
+    settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
+
+
+def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> np.ndarray:
+    """Shift each person vertically so that their lower foot stands at config.foot_height.
+
+    joints (N, H, 22, 3) -> (N, H, 22, 3). The shift is per person and frame, the same for all
+    joints, and smoothed over time so that it never pops. Using the lower foot leaves a step
+    alone (the other foot carries the weight); a jump would be pulled down.
+    """
+    joints = np.asarray(joints, float)
+    lowest = joints[:, :, list(FEET), 1].min(axis=-1)                           # (N, H)
+    shift = gaussian_filter1d(config.foot_height - lowest, config.settle_sigma, axis=0, mode="nearest")
+    return joints + shift[:, :, None, None] * UP
+
+
+def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
+                     busy: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """Stance intervals [start, stop) of one foot's path (N, 3), in time order. `busy` (N,) bool
+    marks frames in which the other foot is off its plant: a made-up step waits for it to land
+    (up to step_frames), so that a gliding person walks rather than hops."""
+    low = foot[:, 1] < config.stance_height
+    if len(foot) > 1:
+        path = gaussian_filter1d(foot, config.speed_sigma, axis=0, mode="nearest")
+        speed = np.linalg.norm(np.gradient(path, axis=0), axis=-1) * fps
+    else:
+        speed = np.zeros(len(foot))
+    strong, weak = low & (speed < config.stance_speed), low & (speed < config.release_speed)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], weak.astype(int), [0]])))
+    out = []
+    for start, stop in zip(edges[::2], edges[1::2]):
+        # Hysteresis: a stance must once be slow; too short a one is a passing touch.
+        if stop - start < config.min_stance_frames or not strong[start:stop].any():
+            continue
+        while start < stop:                      # cut a gliding stance into plants and steps
+            drift = np.linalg.norm(foot[start:stop, [0, 2]] - foot[start, [0, 2]], axis=-1)
+            end = start + int(np.argmax(drift > config.max_drift)) if drift.max() > config.max_drift else stop
+            if busy is not None:
+                end = next((e for e in range(end, min(end + config.step_frames, stop) + 1)
+                            if not busy[e:e + config.step_frames].any()), end)
+            if stop - end < config.step_frames + config.min_stance_frames:
+                end = stop                       # no room for another plant: hold this one
+            out.append((int(start), int(end)))
+            start = end + config.step_frames
+    return out
+
+
+def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetConfig) -> np.ndarray:
+    """Where one foot (N, 3) should be, given its stances -> (N, 3)."""
+    n = len(foot)
+    on = np.zeros(n, bool)
+    target = foot.copy()
+    # Lift-off and touch-down frames (a neighbour is off the floor) keep their height.
+    flat = maximum_filter1d(foot[:, 1], 3, mode="nearest") < config.stance_height
+    for start, stop in intervals:
+        on[start:stop] = True
+        target[start:stop, [0, 2]] = np.mean(foot[start:stop, [0, 2]], axis=0)
+        target[start:stop, 1] = np.where(flat[start:stop], config.foot_height, foot[start:stop, 1])
+    correction = target - foot                                                 # (N, 3), 0 off stance
+    # Before the first stance, after the last and across long gaps the foot keeps its own path:
+    # the correction fades out over blend_frames.
+    frames = np.arange(n)
+    carried = np.stack([np.interp(frames, frames[on], correction[on, k]) for k in range(3)], -1)
+    ramp = np.clip(1.0 - distance_transform_edt(~on) / (config.blend_frames + 1), 0.0, 1.0)
+    goal = foot + (ramp * ramp * (3 - 2 * ramp))[:, None] * carried
+    # A short gap is a step from one plant to the next, eased so the foot leaves and lands
+    # slowly. A swing keeps its own shape, shifted from the first plant's correction to the
+    # next one's; a gap that never leaves the floor was a slide and becomes an arc that rises
+    # fast (square root of a sine) so that the foot is off the floor while it travels.
+    for (_, a), (b, _) in zip(intervals[:-1], intervals[1:]):
+        if b - a > config.max_step_frames:
+            continue
+        s = (frames[a:b] - a + 1) / (b - a + 1)
+        ease = (s * s * (3 - 2 * s))[:, None]
+        if foot[a:b, 1].max() < config.step_height:
+            goal[a:b] = target[a - 1] + ease * (target[b] - target[a - 1])
+            lift = config.step_height - config.foot_height
+            goal[a:b, 1] = config.foot_height + lift * np.sqrt(np.sin(np.pi * s))
+        else:
+            goal[a:b] = foot[a:b] + correction[a - 1] + ease * (correction[b] - correction[a - 1])
+    return goal
+
+
+def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig()) -> np.ndarray:
+    """Pin each foot during its stance intervals and re-solve the leg from the hip.
+
+    joints (N, H, 22, 3) -> (N, H, 22, 3); only knees, ankles and feet move. During a stance the
+    foot joint holds the interval's mean horizontal position at config.foot_height (lift-off and
+    touch-down frames keep their height); around it the foot eases in and out over
+    config.blend_frames, or steps to the next plant. The knee bends the way it already bent
+    (towards the person's facing when the leg was straight); a goal out of reach straightens
+    the leg towards it. Call after `settle_on_ground`.
+    """
+    joints = np.asarray(joints, float)
+    out = joints.copy()
+    for h in range(joints.shape[1]):
+        busy = np.ones(len(joints), bool)                                      # left foot off its plant
+        for side in range(2):
+            hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
+            leg = joints[:, h]                                                 # (N, 22, 3)
+            intervals = stance_intervals(leg[:, toe], fps, config, busy if side else None)
+            for start, stop in intervals:
+                busy[start:stop] = False
+            if not intervals:
+                continue
+            goal = _foot_goal(leg[:, toe], intervals, config)
+            moved = np.any(goal != leg[:, toe], axis=-1)                       # faded out: stays exact
+            leg = leg[moved]
+            foot_offset = leg[:, toe] - leg[:, ankle]
+            upper = np.linalg.norm(leg[:, knee] - leg[:, hip], axis=-1, keepdims=True)
+            lower = np.linalg.norm(leg[:, ankle] - leg[:, knee], axis=-1, keepdims=True)
+            # Bend the knee the way it bends now (off the old hip-ankle line, so a foot planted
+            # ahead cannot flip it backwards); a straight leg bends towards the facing.
+            axis = normalize(leg[:, ankle] - leg[:, hip])
+            bend = leg[:, knee] - leg[:, hip]
+            bend -= np.sum(bend * axis, axis=-1, keepdims=True) * axis
+            facing = np.cross(leg[:, HIPS[0]] - leg[:, HIPS[1]], UP)
+            pole = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-3, bend, facing)
+            new_knee, new_ankle = two_bone_ik(leg[:, hip], goal[moved] - foot_offset, upper, lower, pole)
+            out[moved, h, knee], out[moved, h, ankle] = new_knee, new_ankle
+            out[moved, h, toe] = new_ankle + foot_offset
+    return out

@@ -1,0 +1,143 @@
+"""Finishing, contacts: held objects follow the hands and rest on the ground otherwise; wrists
+reach their grips (or the other person's hand) by exact-length arm IK."""
+import numpy as np
+import pytest
+
+from engine.controls import build_controls
+from engine.finishing.contacts import ContactConfig, hold_object, object_anchors, reach_contacts
+from engine.metrics import anchor_error
+from engine.objects import ObjectSpec
+from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
+from engine.sketchify import sketchify
+from engine.storyboard import Agent, Contact, SceneObject, Storyboard
+from engine.synth import synthesize
+from engine.synth.reach import yaw_matrix
+
+ARMS = [(JOINT_INDEX[f"{s}_shoulder"], JOINT_INDEX[f"{s}_elbow"], JOINT_INDEX[f"{s}_wrist"]) for s in "lr"]
+
+
+def scrambled(scenario: str, seed: int = 3):
+    """A synthesized clip's storyboard, its joints with every arm swung 0.4 rad about the
+    shoulder (bone lengths kept), and its object poses shifted and jittered.
+    Returns storyboard, joints (N, H, 22, 3), obj_pose (N, O, 7)."""
+    clip = synthesize(scenario, seed, fps=20)
+    sb = sketchify(clip, 4, 0.0, seed)
+    joints = clip.joints.astype(float)
+    for side, (shoulder, *rest) in enumerate(ARMS):
+        swing = yaw_matrix(np.array(0.4 if side else -0.4))
+        root = joints[:, :, shoulder, None]
+        joints[:, :, rest] = (joints[:, :, rest] - root) @ swing.T + root
+    rng = np.random.default_rng(seed)
+    pose = clip.obj_pose + np.array([0.5, 0.3, -0.4, 0, 0, 0, 0]) + rng.normal(0, 0.1, clip.obj_pose.shape)
+    return sb, joints, pose
+
+
+def finish(sb, joints, pose, config=ContactConfig()):
+    held = hold_object(joints, pose, sb, config)
+    anchors = object_anchors(held, sb)
+    return held, anchors, reach_contacts(joints, anchors, sb, config)
+
+
+@pytest.fixture(scope="module")
+def carry():
+    sb, joints, pose = scrambled("carry_together")
+    return (sb, joints, pose) + finish(sb, joints, pose)
+
+
+def test_carry_hands_on_the_object(carry):
+    sb, joints, _, held, anchors, out = carry
+    contact_anchor = build_controls(sb).contact_anchor
+    assert anchor_error(joints, anchors, contact_anchor) > 0.03  # the swung arms miss the grips
+    assert anchor_error(out, anchors, contact_anchor) < 0.01
+    assert np.isfinite(out).all() and np.isfinite(held).all()
+
+
+def test_carry_keeps_bones_and_the_rest_of_the_body(carry):
+    _, joints, _, _, _, out = carry
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(joints), atol=1e-9)
+    arms = [j for arm in ARMS for j in arm[1:]]
+    others = [j for j in range(22) if j not in arms]
+    np.testing.assert_array_equal(out[:, :, others], joints[:, :, others])
+
+
+def test_carry_object_rests_still_on_the_ground(carry):
+    sb, _, _, held, _, _ = carry
+    first = min(c.start for c in sb.contacts)
+    last = max(c.end for c in sb.contacts)
+    settled = last + 10  # time to drop from a release just above the ground
+    assert settled < sb.length - 1
+    for rest in (held[:first + 1, 0], held[settled:, 0]):
+        np.testing.assert_allclose(rest[:, 1], 0.0, atol=1e-12)
+        np.testing.assert_allclose(rest, np.broadcast_to(rest[0], rest.shape), atol=1e-12)
+        np.testing.assert_allclose(np.linalg.norm(rest[:, 3:], axis=-1), 1.0)
+    assert np.ptp(held[first:last, 0, :3], axis=0).max() > 0.2  # and it is carried in between
+
+
+def test_held_object_is_upright_and_moves_smoothly(carry):
+    _, _, _, held, _, _ = carry
+    np.testing.assert_allclose(held[..., [4, 6]], 0.0, atol=1e-12)  # yaw only: no tilt
+    step = np.linalg.norm(np.diff(held[:, 0, :3], axis=0), axis=-1)
+    assert step.max() < 0.1  # m per frame at 20 fps: no jumps
+
+
+def test_handshake_brings_wrists_together():
+    sb, joints, pose = scrambled("handshake")
+    config = ContactConfig()
+    held, anchors, out = finish(sb, joints, pose, config)
+    shake = sb.contacts[0]
+    right = HANDS[1]
+    span = slice(shake.start, shake.end + 1)
+    gap = np.linalg.norm(out[span, 0, right] - out[span, 1, right], axis=-1)
+    before = np.linalg.norm(joints[span, 0, right] - joints[span, 1, right], axis=-1)
+    assert before.mean() > 0.15
+    np.testing.assert_allclose(gap, config.hand_gap, atol=1e-6)
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(joints), atol=1e-9)
+    # Nobody holds the object: it stays still on the ground where it was decoded.
+    np.testing.assert_allclose(held[:, 0], np.broadcast_to(held[0, 0], held[:, 0].shape), atol=1e-12)
+    assert held[0, 0, 1] == 0.0
+    np.testing.assert_allclose(held[0, 0, [0, 2]], np.median(pose[:, 0, [0, 2]], axis=0))
+
+
+def test_no_contacts_grounds_a_still_object():
+    sb, joints, pose = scrambled("carry_together")
+    sb.contacts = []
+    held, anchors, out = finish(sb, joints, pose)
+    assert np.isfinite(held).all()
+    np.testing.assert_allclose(held[..., 1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(held, np.broadcast_to(held[:1], held.shape), atol=1e-12)
+    np.testing.assert_array_equal(out, joints)
+
+
+def one_person(n: int = 40):
+    """One person in rest pose walking along +Z, holding a box with both hands over [0, 30] and
+    with the right hand alone over [31, 34]. Returns storyboard, joints (N, 1, 22, 3)."""
+    sb = Storyboard(length=n, agents=[Agent("A")], objects=[SceneObject("box", ObjectSpec("box"))],
+                    contacts=[Contact("A", "left", 0, 30, "box", 0), Contact("A", "right", 0, 34, "box", 2)])
+    joints = rest_pose()[None, None] + np.linspace(0, 1, n)[:, None, None, None] * [0, 0, 1]
+    return sb, joints
+
+
+def test_one_person_and_one_hand():
+    sb, joints = one_person()
+    held, anchors, out = finish(sb, joints, np.zeros((len(joints), 1, 7)))
+    contact_anchor = build_controls(sb).contact_anchor
+    assert np.isfinite(out).all()
+    both = slice(0, 31)  # (the T-pose's far-apart hands put the one-hand grip out of reach)
+    assert anchor_error(out[both], anchors[both], contact_anchor[both]) < 1e-6
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(joints), atol=1e-9)
+    # The right hand alone carries it on without turning it.
+    np.testing.assert_allclose(held[31:35, 0, 3:], np.broadcast_to(held[30, 0, 3:], (4, 4)), atol=1e-12)
+
+
+def test_no_objects():
+    sb, joints = one_person()
+    sb.objects, sb.contacts = [], [Contact("A", "left", 15, 19, other_agent="A", other_hand="right")]
+    pose = np.zeros((len(joints), 0, 7))
+    held = hold_object(joints, pose, sb)
+    assert held.shape == pose.shape and object_anchors(held, sb).shape[:2] == (len(joints), 0)
+    out = reach_contacts(joints, None, sb, ContactConfig(hand_gap=0.0))
+    np.testing.assert_allclose(out[15:20, 0, HANDS[0]], out[15:20, 0, HANDS[1]], atol=1e-9)
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(joints), atol=1e-9)
+    untouched = 15 - ContactConfig().blend_frames  # frames before the ease-in
+    np.testing.assert_array_equal(out[:untouched], joints[:untouched])
+    assert np.abs(out[untouched:15] - joints[untouched:15]).max() > 0

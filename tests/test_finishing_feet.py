@@ -1,0 +1,116 @@
+"""Feet finishing: grounding and foot locking keep bones, fix sliding and floating, spare good motion."""
+import numpy as np
+import pytest
+
+from engine.finishing.feet import HIPS, KNEES, FeetConfig, lock_feet, settle_on_ground, stance_intervals
+from engine.metrics import foot_skate_ratio
+from engine.skeleton import ANKLES, FEET, bone_lengths, rest_pose
+from engine.synth import SCENARIOS, synthesize
+
+FPS = 20.0
+
+
+@pytest.fixture(scope="module")
+def clean() -> dict[str, np.ndarray]:
+    """Synthesized clips: planted feet never move, so they are good motion. name -> (N, 2, 22, 3)."""
+    return {s: synthesize(s, 0, fps=FPS).joints.astype(float) for s in SCENARIOS}
+
+
+def slid(joints: np.ndarray, speed: float = 0.7) -> np.ndarray:
+    """The whole clip drifting along +x at `speed` m/s, plus a little jitter: every planted
+    foot slides, as in the generator's output."""
+    n = len(joints)
+    drift = np.zeros((n, 1, 1, 3))
+    drift[:, 0, 0, 0] = speed * np.arange(n) / FPS
+    jitter = np.random.default_rng(0).normal(0.0, 0.003, joints.shape[:2] + (1, 3))
+    return joints + drift + jitter
+
+
+def finish(joints: np.ndarray) -> np.ndarray:
+    return lock_feet(settle_on_ground(joints), FPS)
+
+
+def lowest_foot(joints: np.ndarray) -> np.ndarray:
+    return joints[:, :, list(FEET), 1].min(axis=-1)
+
+
+def test_bone_lengths_are_kept_exactly(clean):
+    for joints in clean.values():
+        noisy = slid(joints)
+        out = finish(noisy)
+        assert out.shape == noisy.shape and np.isfinite(out).all()
+        assert np.abs(bone_lengths(out) - bone_lengths(noisy)).max() < 1e-9
+
+
+def test_sliding_feet_are_locked(clean):
+    joints = slid(clean["carry_together"])
+    before = foot_skate_ratio(joints, FPS)
+    after = finish(joints)
+    assert before > 0.3
+    assert foot_skate_ratio(after, FPS) < 0.05
+    # The people still go where they went: only legs move, the pelvis keeps its path.
+    assert np.allclose(after[:, :, 0, [0, 2]], joints[:, :, 0, [0, 2]])
+
+
+def test_planted_foot_holds_still_unless_out_of_reach(clean):
+    """A stance pins the foot; where the body has drifted too far from the plant for the leg to
+    reach it, the leg is straight instead."""
+    joints = settle_on_ground(slid(clean["carry_together"]))
+    out = lock_feet(joints, FPS)
+    held = stance = 0
+    for h in range(out.shape[1]):
+        for hip, knee, ankle, foot in zip(HIPS, KNEES, ANKLES, FEET):
+            reach = (np.linalg.norm(out[:, h, knee] - out[:, h, hip], axis=-1)
+                     + np.linalg.norm(out[:, h, ankle] - out[:, h, knee], axis=-1))
+            straight = np.linalg.norm(out[:, h, ankle] - out[:, h, hip], axis=-1) > reach * (1 - 1e-5)
+            for start, stop in stance_intervals(joints[:, h, foot], FPS):
+                pinned = out[start:stop, h, foot][~straight[start:stop]]
+                if len(pinned):
+                    assert np.ptp(pinned[:, [0, 2]], axis=0).max() < 1e-9
+                held, stance = held + len(pinned), stance + stop - start
+    assert held > 0.9 * stance
+
+
+@pytest.mark.parametrize("lift", [0.2, -0.1])
+def test_floating_and_sinking_people_are_grounded(clean, lift):
+    joints = clean["let_go"] + np.array([0.0, lift, 0.0])
+    out = settle_on_ground(joints)
+    assert np.abs(lowest_foot(out) - FeetConfig().foot_height).max() < 0.01
+    # A rigid vertical shift: the horizontal motion is untouched.
+    assert np.allclose(out[..., [0, 2]], joints[..., [0, 2]])
+
+
+def test_settle_does_not_pop():
+    """A body that jumps up 5 cm from one frame to the next is brought down gradually."""
+    joints = np.repeat(rest_pose()[None, None], 40, 0)
+    joints[20:] += np.array([0.0, 0.05, 0.0])
+    shift = settle_on_ground(joints)[:, 0, 0, 1] - joints[:, 0, 0, 1]
+    assert np.abs(np.diff(shift)).max() < 0.01
+    assert abs(shift[0]) < 1e-3 and abs(shift[-1] + 0.05) < 1e-3
+
+
+def test_good_motion_is_left_alone(clean):
+    for name, joints in clean.items():
+        out = finish(joints)
+        assert np.linalg.norm(out - joints, axis=-1).max() < 0.003, name
+
+
+@pytest.mark.parametrize("n, h", [(1, 1), (1, 2), (2, 1), (7, 1)])
+def test_tiny_clips(n, h):
+    joints = np.repeat(rest_pose()[None, None], n, 0).repeat(h, 1)
+    joints[..., 1] += 0.03
+    out = finish(joints)
+    assert out.shape == joints.shape and np.isfinite(out).all()
+    assert np.allclose(lowest_foot(out), FeetConfig().foot_height)
+
+
+def test_straight_legs_and_unreachable_plants_stay_finite():
+    """Rest pose legs are straight (no knee direction); a body that runs off faster than the leg
+    can follow leaves plants out of reach. Neither may produce NaN or stretch a bone."""
+    n = 40
+    joints = np.repeat(rest_pose()[None, None], n, 0)
+    joints[:, 0, :, 2] += np.linspace(0.0, 0.8, n)[:, None]          # 0.4 m/s, slow enough to plant
+    out = lock_feet(joints, FPS, FeetConfig(max_drift=10.0))
+    assert np.isfinite(out).all()
+    assert not np.allclose(out, joints)                                 # the feet were held back
+    assert np.abs(bone_lengths(out) - bone_lengths(joints)).max() < 1e-9

@@ -1,0 +1,87 @@
+"""Motion warping onto keyposes and pelvis paths (engine/finishing/warp.py) and the finishing pass."""
+import numpy as np
+import pytest
+
+from engine.finishing import consistent_skeleton, finish
+from engine.finishing.warp import follow_paths, solve_keypose, spread, warp_to_keyposes
+from engine.metrics import keypose_errors_2d, point_polyline_distance
+from engine.controls import build_controls
+from engine.sketchify import sketchify
+from engine.skeleton import bone_lengths
+from engine.synth import synthesize
+
+
+@pytest.fixture(scope="module")
+def scene():
+    clip = synthesize("carry_together", 3, fps=20)
+    return clip, sketchify(clip, 4, 0.0, 3)
+
+
+def disturbed(joints: np.ndarray, seed: int = 0) -> np.ndarray:
+    """The motion with a slow drift of each person and a bent pose: what a rough generator makes."""
+    rng = np.random.default_rng(seed)
+    n = len(joints)
+    drift = np.cumsum(rng.normal(0, 0.01, (n, joints.shape[1], 1, 3)), 0) * (1, 0, 1)
+    out = joints + drift
+    out[:, :, 16:, :] += 0.05 * np.sin(np.linspace(0, 3, n))[:, None, None, None]  # arms off
+    return out
+
+
+def test_spread_is_exact_at_keys_linear_between_and_fades_outside():
+    out = spread(40, [10, 20], np.array([[1.0], [3.0]]), falloff=5)
+    assert out[10, 0] == pytest.approx(1.0) and out[20, 0] == pytest.approx(3.0)
+    assert out[15, 0] == pytest.approx(2.0)
+    assert out[4, 0] == 0.0 and out[26, 0] == 0.0 and 0 < out[7, 0] < 1
+
+
+def test_solve_keypose_lands_on_the_sketch_with_the_bones_kept_and_the_feet_on_the_ground(scene):
+    clip, sb = scene
+    joints, offsets = consistent_skeleton(disturbed(clip.joints))
+    key = sb.keyposes[0]
+    h = sb.agent_index(key.agent)
+    lengths = np.linalg.norm(offsets[h], axis=-1)
+    posed = solve_keypose(joints[key.frame, h], key.points, key.mask, sb.camera, lengths, 0.02)
+    assert np.abs(sb.camera.project(posed) - key.points)[key.mask].max() < 0.02
+    np.testing.assert_allclose(bone_lengths(posed)[1:], lengths[1:], atol=1e-9)
+    assert posed[[10, 11], 1].min() == pytest.approx(0.02, abs=1e-9)
+
+
+def test_warp_to_keyposes_passes_through_every_keypose_and_keeps_the_skeleton(scene):
+    clip, sb = scene
+    joints, offsets = consistent_skeleton(disturbed(clip.joints))
+    c = build_controls(sb)
+    before = keypose_errors_2d(joints, c.kp2d, c.kp_mask, sb.camera).mean()
+    warped = warp_to_keyposes(joints, offsets, sb)
+    after = keypose_errors_2d(warped, c.kp2d, c.kp_mask, sb.camera).mean()
+    assert after < 0.03 < before
+    for h in range(2):
+        np.testing.assert_allclose(bone_lengths(warped[:, h])[:, 1:],
+                                   np.broadcast_to(np.linalg.norm(offsets[h], axis=-1)[1:], (len(warped), 21)),
+                                   atol=1e-9)
+    assert np.isfinite(warped).all()
+
+
+def test_follow_paths_puts_the_pelvis_on_its_stroke_within_its_tolerance(scene):
+    clip, sb = scene
+    joints, _ = consistent_skeleton(disturbed(clip.joints) + (0.3, 0.0, 0.0))
+    moved = follow_paths(joints, sb)
+    for stroke in sb.trajectories:
+        if stroke.joint != "pelvis":
+            continue
+        h, span = sb.agent_index(stroke.agent), slice(stroke.start, stroke.end + 1)
+        err = lambda j: point_polyline_distance(sb.camera.project(j[span, h, 0]), stroke.points).mean()
+        assert err(moved) < 0.035 < 0.07 < err(joints)
+
+
+def test_finish_leaves_a_motion_that_already_matches_its_sketch_nearly_alone(scene):
+    clip, sb = scene
+    done = finish(clip, sb)
+    assert np.linalg.norm(done.joints - clip.joints, axis=-1).mean() < 0.03
+    assert done.bone_offsets.shape == (2, 22, 3) and np.isfinite(done.rot6d).all()
+
+
+def test_finish_without_keyposes_or_strokes_only_fixes_the_skeleton(scene):
+    clip, sb = scene
+    bare = type(sb)(fps=sb.fps, length=sb.length, camera=sb.camera, agents=sb.agents)
+    done = finish(clip, bare)
+    assert np.linalg.norm(done.joints - clip.joints, axis=-1).max() < 0.05
