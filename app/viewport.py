@@ -2,10 +2,14 @@
 
 No QOpenGLWidget (DESIGN section 5): the renderer draws with the process's one standalone EGL
 context into its own framebuffer, and this widget paints the pixels. It re-renders only when
-something it shows changed (clip, frame, camera, size, storyboard), on the next paint: however
-many previews stream in between two paints, only the newest is drawn.
-The renderer is built and its shaders compiled just after the first paint (warm_up), so the
-second of shader compiling falls at start-up, not on a generation's first preview.
+something it shows changed (clip, frame, camera, size, storyboard), on the next turn of the
+event loop, apart from painting: a render and the other widgets' paints then never add up to
+one long wait, and however many previews stream in meanwhile, only the newest is drawn.
+The first paint shows a placeholder; then the renderer is built and its shaders compiled
+(warm_up), so the second of shader compiling neither holds up the window's first appearance
+nor falls on a generation's first preview. While the camera moves (a drag, the wheel) the view
+renders at MOVING_SCALE of its size, since sky, ground and ghosts are redrawn on every move,
+and at full size again once the camera rests.
 It is a view of the playhead, not a clock: it shows the frame it is given (set_frame), and its
 playback keys only ask for changes (playToggleRequested, stepRequested), which the owner of
 the playback model (app.playback.Playback) answers.
@@ -15,7 +19,10 @@ Public API (everything else is private):
     set_clip(clip: MotionClip | None)      show a motion; frames the camera on it; frame 0
     set_preview(clip: MotionClip)          slot for streamed previews: same, but keeps the frame
                                            and the camera
-    warm_up()                              build the renderer and compile its shaders now
+    warm_up()                              build the renderer now; its shaders compile over the
+                                           next turns of the event loop
+    ready -> bool                          warm_up has finished: every shader is compiled
+    rendered_size -> (int, int) | None     pixels of the last render (smaller while the camera moves)
     set_storyboard(sb: Storyboard | None)  keyframe ghosts and target paths come from it
     set_frame(frame: int)                  the playhead; shown clamped to the clip (see frame)
     frame -> int, num_frames -> int
@@ -29,6 +36,7 @@ Keys: F frames all; Space requests play / pause, Left / Right request a one-fram
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import replace
 
 from PySide6.QtCore import QPointF, Qt, QTimer, Signal, Slot
@@ -36,12 +44,25 @@ from PySide6.QtGui import QColor, QImage, QPainter
 from PySide6.QtWidgets import QWidget
 
 from engine.clip import MotionClip
+from engine.objects import ObjectSpec
 from engine.render import (OrbitCamera, RenderConfig, RenderUnavailableError, SceneOptions, SceneRenderer,
                            scene_from_clip)
+from engine.render.example import warm_up_scenes
 from engine.storyboard import Storyboard
 
 ORBIT_DEGREES_PER_PIXEL = 0.4
 WHEEL_ZOOM_PER_NOTCH = 0.88  # distance factor per 120 units of wheel angle
+MOVING_SCALE = 0.5           # render resolution while the camera moves (a quarter of the pixels)
+CAMERA_REST_MS = 150         # after the last wheel step the view renders at full size again
+PLACEHOLDER = QColor("#dfe3e8")
+
+
+def _prefetch_object_meshes() -> threading.Thread:
+    """Object meshes come from trimesh, whose import takes most of a second of Python: run it
+    on a thread while the window appears, so that the GUI thread does not wait for it."""
+    thread = threading.Thread(target=lambda: ObjectSpec("box").mesh(), name="mesh-import", daemon=True)
+    thread.start()
+    return thread
 
 
 class Viewport(QWidget):
@@ -56,7 +77,7 @@ class Viewport(QWidget):
         self.empty_hint = ""
         self._config = config
         self._renderer: SceneRenderer | None = None
-        self._warm = False
+        self._warm = False   # warm_up has run: the renderer exists (or failed, see _error)
         self._error = ""
         self._clip: MotionClip | None = None
         self._storyboard: Storyboard | None = None
@@ -67,6 +88,14 @@ class Viewport(QWidget):
         self.options = SceneOptions()  # which overlays (ghosts, target and generated paths) to draw
         self._drag_pos: QPointF | None = None
         self._drag_mode: str | None = None  # "orbit" or "pan" while a button is held
+        self._render_timer = QTimer(self)
+        self._render_timer.setSingleShot(True)
+        self._render_timer.timeout.connect(self._render_if_stale)
+        self._rest_timer = QTimer(self)  # runs while the wheel is turning the camera
+        self._rest_timer.setSingleShot(True)
+        self._rest_timer.timeout.connect(self.update_view)
+        self._mesh_import = _prefetch_object_meshes()
+        self._warm_up_steps: list = []  # example scenes still to draw (engine.render.example)
 
     # ---- content -------------------------------------------------------------------------
     @property
@@ -113,37 +142,65 @@ class Viewport(QWidget):
         self.update_view()
 
     def update_view(self) -> None:
-        """Mark the picture stale; it is re-rendered at the next paint."""
+        """Mark the picture stale; it is re-rendered on the next turn of the event loop."""
         self._dirty = True
-        self.update()
+        if self._warm:
+            self._render_timer.start(0)
+        else:
+            self.update()
 
     # ---- output --------------------------------------------------------------------------
     def grab_png(self, path: str) -> bool:
         """Save the widget as it looks now (the 3D image and its overlay text)."""
         return self.grab().save(str(path), "PNG")
 
+    @property
+    def ready(self) -> bool:
+        """The warm-up has finished (or found no OpenGL): no render waits for a shader."""
+        return self._warm and not self._warm_up_steps
+
+    @property
+    def rendered_size(self) -> tuple[int, int] | None:
+        return None if self._image is None else (self._image.width(), self._image.height())
+
     def warm_up(self) -> None:
-        """Build the renderer and let it compile every shader now (about a second of software GL
-        the first time in a process). Does nothing once done."""
+        """Build the renderer, then let it compile every shader (up to a second of software GL
+        the first time, much less once Mesa's disk cache holds them) by drawing the example's
+        warm-up scenes, one per turn of the event loop, so the window keeps responding. Does
+        nothing once done."""
         if self._warm:
             return
         self._warm = True
-        renderer = self._ensure_renderer()
-        if renderer is not None:
-            renderer.warm_up()
-            self.update_view()  # the warm-up drew its own scene into the image we show
+        if self._ensure_renderer(self.width(), self.height()) is not None:
+            self._warm_up_steps = warm_up_scenes()
+            self._warm_up_step()
+        self.update_view()
+
+    def _warm_up_step(self) -> None:
+        scene = self._warm_up_steps[0]
+        if scene.objects and self._mesh_import.is_alive():
+            # Poll: waiting on the import here would freeze the window for as long as it takes.
+            QTimer.singleShot(50, self, self._warm_up_step)
+            return
+        self._renderer.draw(scene)  # draw only: the image on screen stays as it is
+        self._warm_up_steps.pop(0)
+        if self._warm_up_steps:
+            QTimer.singleShot(0, self, self._warm_up_step)
 
     def paintEvent(self, event) -> None:
         painter = QPainter(self)
-        if self._dirty:
-            self._render()
         if not self._warm:
             QTimer.singleShot(0, self, self.warm_up)  # once this first picture is on screen
+        elif self._dirty:
+            self._render()  # a paint that came before the render timer (a resize, grab) is current too
         if self._image is None:
-            painter.fillRect(self.rect(), QColor("#dfe3e8"))
+            painter.fillRect(self.rect(), PLACEHOLDER)
             painter.drawText(self.rect(), Qt.AlignCenter | Qt.TextWordWrap, self._error or "3D view")
-        else:
+        elif self._image.size() == self.size():
             painter.drawImage(0, 0, self._image)
+        else:  # rendered at MOVING_SCALE
+            painter.setRenderHint(QPainter.SmoothPixmapTransform)
+            painter.drawImage(self.rect(), self._image)
         if self.num_frames:
             painter.setPen(QColor(60, 60, 60))
             painter.drawText(self.rect().adjusted(8, 6, -8, -6), Qt.AlignLeft | Qt.AlignTop,
@@ -164,22 +221,30 @@ class Viewport(QWidget):
         painter.setPen(QColor("#4a463f"))
         painter.drawText(box, Qt.AlignCenter | Qt.TextWordWrap, self.empty_hint)
 
-    def _ensure_renderer(self) -> SceneRenderer | None:
-        """The renderer at the widget's size; None (and the reason in _error) without OpenGL."""
-        w, h = max(1, self.width()), max(1, self.height())
+    def _ensure_renderer(self, width: int, height: int, scale: float = 1.0) -> SceneRenderer | None:
+        """The renderer at this size, shown enlarged by 1 / scale; None (and the reason in
+        _error) without OpenGL."""
+        w, h = max(1, width), max(1, height)
         try:
             if self._renderer is None:
                 self._renderer = SceneRenderer(w, h, self._config)
-            self._renderer.resize(w, h)
+            self._renderer.resize(w, h, display_scale=1.0 / scale)
         except RenderUnavailableError as e:
             self._error, self._image = str(e), None
             return None
         return self._renderer
 
+    def _render_if_stale(self) -> None:
+        if self._dirty and self.isVisible():
+            self._render()
+            self.update()
+
     def _render(self) -> None:
         self._dirty = False
-        w, h = max(1, self.width()), max(1, self.height())
-        if self._ensure_renderer() is None:
+        moving = self._drag_mode is not None or self._rest_timer.isActive()
+        scale = MOVING_SCALE if moving else 1.0
+        w, h = max(1, round(self.width() * scale)), max(1, round(self.height() * scale))
+        if self._ensure_renderer(w, h, scale) is None:
             return
         try:
             pixels = self._renderer.render(scene_from_clip(self._clip, self.frame, self._storyboard, self.options),
@@ -188,7 +253,8 @@ class Viewport(QWidget):
             self._error, self._image = str(e), None
             return
         # Wraps the renderer's buffer without a copy; it stays valid until the next render.
-        self._image = QImage(pixels.data, w, h, 4 * w, QImage.Format_RGBA8888)
+        # RGBX: translucent overlays leave alpha below 1 in the framebuffer; the view is opaque.
+        self._image = QImage(pixels.data, w, h, 4 * w, QImage.Format_RGBX8888)
         self._pixels = pixels
 
     def resizeEvent(self, event) -> None:
@@ -209,7 +275,10 @@ class Viewport(QWidget):
         self.setFocus()
 
     def mouseReleaseEvent(self, event) -> None:
+        dragged = self._image is not None and self._image.size() != self.size()
         self._drag_pos = self._drag_mode = None
+        if dragged:
+            self.update_view()  # back to full resolution
 
     def mouseMoveEvent(self, event) -> None:
         if self._drag_pos is None:
@@ -227,6 +296,7 @@ class Viewport(QWidget):
         notches = event.angleDelta().y() / 120.0
         if notches:
             self.camera.zoom(WHEEL_ZOOM_PER_NOTCH ** notches)
+            self._rest_timer.start(CAMERA_REST_MS)
             self.update_view()
 
     def keyPressEvent(self, event) -> None:

@@ -1,10 +1,7 @@
 #version 330
-// One direction of a separable 9-tap Gaussian blur of the shadow map. The last pass also adds
-// some of the unblurred map back, so contact shadows under feet stay crisp inside the soft ones.
+// One direction of a separable 9-tap Gaussian blur of the shadow map.
 uniform sampler2D u_source;
-uniform sampler2D u_sharp;
 uniform vec2 u_step;          // texel offset per tap, in uv
-uniform vec2 u_mix;           // weight of the blurred and of the sharp map
 in vec2 v_ndc;
 out vec4 f_color;
 
@@ -16,5 +13,5 @@ void main() {
         sum += texture(u_source, uv + u_step * float(i)).r * weight[i];
         sum += texture(u_source, uv - u_step * float(i)).r * weight[i];
     }
-    f_color = vec4(min(1.0, u_mix.x * sum + u_mix.y * texture(u_sharp, uv).r));
+    f_color = vec4(sum);
 }

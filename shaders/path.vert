@@ -7,7 +7,7 @@ in vec2 i_arc;          // arc length (metres) at p0 and p1, for dashes
 in vec4 i_color;        // linear rgba
 in vec2 i_style;        // width in pixels, dashed (0 or 1)
 uniform mat4 u_view_proj;
-uniform vec2 u_viewport;   // pixels
+uniform vec2 u_viewport;   // screen pixels, the unit of the widths
 out vec4 v_color;
 out float v_arc;
 out float v_across;

@@ -30,6 +30,7 @@ def viewport(qtbot):
     view.set_storyboard(carry_storyboard(clip))
     view.show()
     qtbot.waitExposed(view)
+    qtbot.waitUntil(lambda: view.ready)  # the first paint showed a placeholder, then it warmed up
     return view
 
 
@@ -104,3 +105,40 @@ def test_grab_png_writes_a_picture(viewport, tmp_path):
     assert viewport.grab_png(path)
     image = QImage(str(path))
     assert (image.width(), image.height()) == (320, 240)
+
+
+def test_first_paint_is_a_placeholder_then_the_scene(qtbot):
+    try:
+        shared_context()
+    except RenderUnavailableError as e:
+        pytest.skip(str(e))
+    view = Viewport()
+    qtbot.addWidget(view)
+    view.resize(320, 240)
+    view.set_clip(carry_clip(12))
+    view.show()
+    first = grab_rgb(view)   # painted before the event loop could warm anything up
+    assert not view.ready and view.rendered_size is None
+    assert (np.abs(first.astype(int) - [0xdf, 0xe3, 0xe8]).sum(-1) < 8).mean() > 0.9
+    qtbot.waitUntil(lambda: view.ready)
+    qtbot.waitUntil(lambda: view.rendered_size == (320, 240))
+    r, g, b = (grab_rgb(view)[..., i].astype(int) for i in range(3))
+    assert ((r - g > 90) & (g - b > 10)).sum() > 100
+
+
+def test_a_moving_camera_renders_smaller_and_full_size_once_it_rests(viewport, qtbot):
+    qtbot.waitUntil(lambda: viewport.rendered_size == (320, 240))
+    qtbot.mousePress(viewport, Qt.LeftButton, pos=QPoint(100, 120))
+    qtbot.mouseMove(viewport, QPoint(140, 120))
+    qtbot.waitUntil(lambda: viewport.rendered_size == (160, 120))
+    dragging = grab_rgb(viewport)
+    assert dragging.shape == (240, 320, 3)   # scaled up to the widget
+    r, g, b = (dragging[..., i].astype(int) for i in range(3))
+    assert ((r - g > 90) & (g - b > 10)).sum() > 100 and (b - r > 60).sum() > 100
+    qtbot.mouseRelease(viewport, Qt.LeftButton, pos=QPoint(140, 120))
+    qtbot.waitUntil(lambda: viewport.rendered_size == (320, 240))
+    wheel = QWheelEvent(QPointF(160, 120), viewport.mapToGlobal(QPointF(160, 120)), QPoint(), QPoint(0, 120),
+                        Qt.NoButton, Qt.NoModifier, Qt.NoScrollPhase, False)
+    QApplication.sendEvent(viewport, wheel)
+    qtbot.waitUntil(lambda: viewport.rendered_size == (160, 120))
+    qtbot.waitUntil(lambda: viewport.rendered_size == (320, 240))

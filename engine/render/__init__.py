@@ -5,7 +5,8 @@
     image = renderer.render(scene_from_clip(clip, frame, storyboard), camera)  # (720, 1280, 4) uint8
 
 It draws through the process's one standalone EGL moderngl context (context.py) with the GLSL
-in the repository's shaders/ directory. sheets.py writes contact sheets and GIFs of a clip.
+in the repository's shaders/ directory. sheets.py writes contact sheets and GIFs of a clip;
+`python -m engine.render.benchmark` times the viewport's frames.
 """
 from .camera import OrbitCamera
 from .context import RenderUnavailableError, shared_context

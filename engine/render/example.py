@@ -1,5 +1,5 @@
 """A small built-in scene: two people carrying a box sideways, with a storyboard that asks for
-it. Used by the render benchmark, the renderer tests and as a quick look at the renderer.
+it. Used by the renderer's warm-up, the renderer tests and as a quick look at the renderer.
 """
 from __future__ import annotations
 
@@ -10,8 +10,9 @@ from ..clip import MotionClip
 from ..objects import ObjectSpec
 from ..rotations import matrix_to_6d, rotation_between
 from ..skeleton import JOINT_INDEX, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
-from .bodies import hand_centres
 from ..storyboard import Agent, Keypose, SceneObject, Storyboard, Trajectory
+from .bodies import hand_centres
+from .scene import SceneState, scene_from_clip
 
 J = JOINT_INDEX
 BOX = ObjectSpec("box")
@@ -69,3 +70,16 @@ def carry_storyboard(clip: MotionClip) -> Storyboard:
     wobble = 0.06 * np.sin(np.linspace(0, 2 * np.pi, len(pelvis)))[:, None] * np.array([1.0, 0.0])
     sb.trajectories.append(Trajectory("a", "pelvis", 0, clip.num_frames - 1, pelvis + wobble))
     return sb
+
+
+def warm_up_scenes() -> list[SceneState]:
+    """The example in steps of growing content: ground and sky; the people and their shadows;
+    keyframe ghosts; paths and contact glows; the box. Drawing them in turn compiles every
+    shader, a few per step; only the last needs an object mesh (and so trimesh)."""
+    clip = carry_clip(4)
+    full = scene_from_clip(clip, 1, carry_storyboard(clip))
+    people = SceneState(people=full.people, colors=full.colors)
+    ghosts = SceneState(people=full.people, colors=full.colors, ghosts=full.ghosts)
+    overlays = scene_from_clip(clip, 1, carry_storyboard(clip))
+    overlays.objects = []
+    return [SceneState(), people, ghosts, overlays, full]

@@ -1,6 +1,7 @@
 """Unit meshes the shaders instance, and object meshes as vertex arrays.
 
-All triangles wind counter-clockwise seen from outside.
+Unit meshes are indexed: llvmpipe then runs the vertex shader once per corner, not once per
+triangle that uses it. All triangles wind counter-clockwise seen from outside.
 """
 from __future__ import annotations
 
@@ -9,27 +10,32 @@ import numpy as np
 from ..objects import ObjectSpec
 
 
-def unit_ring(segments: int = 14) -> np.ndarray:
-    """Open cylinder for capsule.vert: (6 * segments, 3) float32 rows of cos, sin, t."""
-    a = np.linspace(0.0, 2 * np.pi, segments + 1)
-    cos, sin = np.cos(a), np.sin(a)
-    tris = []
-    for i in range(segments):
-        b0, b1 = (cos[i], sin[i], 0.0), (cos[i + 1], sin[i + 1], 0.0)
-        t0, t1 = (cos[i], sin[i], 1.0), (cos[i + 1], sin[i + 1], 1.0)
-        # The axis runs along u x v, so counter-clockwise seen from outside is b0, b1, t1.
-        tris += [b0, b1, t1, b0, t1, t0]
-    return np.asarray(tris, np.float32)
+def unit_ring(segments: int = 14) -> tuple[np.ndarray, np.ndarray]:
+    """Open cylinder for capsule.vert: vertices (2 * segments, 3) float32 rows of cos, sin, t
+    (the bottom ring, then the top ring) and indices (6 * segments,) int32.
+    """
+    a = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
+    ring = np.stack([np.cos(a), np.sin(a)], axis=1)
+    vertices = np.concatenate([np.c_[ring, np.zeros(segments)], np.c_[ring, np.ones(segments)]])
+    b0 = np.arange(segments)
+    b1 = (b0 + 1) % segments
+    t0, t1 = b0 + segments, b1 + segments
+    # The axis runs along u x v, so counter-clockwise seen from outside is b0, b1, t1.
+    indices = np.stack([b0, b1, t1, b0, t1, t0], axis=1).reshape(-1)
+    return vertices.astype(np.float32), indices.astype(np.int32)
 
 
-def unit_quad() -> np.ndarray:
-    """(6, 2) float32 two triangles with corners at -1 / +1."""
-    return np.array([(-1, -1), (1, -1), (1, 1), (-1, -1), (1, 1), (-1, 1)], np.float32)
+def unit_quad() -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (4, 2) float32, corners at -1 / +1, and indices (6,) int32 of its two triangles."""
+    return (np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)], np.float32),
+            np.array([0, 1, 2, 0, 2, 3], np.int32))
 
 
-def ribbon_quad() -> np.ndarray:
-    """(6, 2) float32 corners for path.vert: x 0..1 along the segment, y -1 / +1 across."""
-    return np.array([(0, -1), (1, -1), (1, 1), (0, -1), (1, 1), (0, 1)], np.float32)
+def ribbon_quad() -> tuple[np.ndarray, np.ndarray]:
+    """For path.vert: vertices (4, 2) float32, x 0..1 along the segment and y -1 / +1 across,
+    and indices (6,) int32 of its two triangles."""
+    return (np.array([(0, -1), (1, -1), (1, 1), (0, 1)], np.float32),
+            np.array([0, 1, 2, 0, 2, 3], np.int32))
 
 
 def object_triangles(spec: ObjectSpec) -> np.ndarray:

@@ -47,7 +47,7 @@ def real_window(make_window, monkeypatch):
     monkeypatch.setattr(app.generation, "_bundle", small_bundle)
     window = make_window(generate=paced_generation)
     assert window.open_example(EXAMPLES_DIR / "box_handoff.json")
-    window.viewport.warm_up()  # as after the first paint; then no step has to wait for shaders
+    window.viewport.warm_up()  # as after the first paint: the renderer exists, its shaders compile soon after
     return window
 
 

@@ -60,16 +60,18 @@ def test_undo_redo_and_playback_shortcuts(qtbot, window):
 
 
 def test_generation_streams_every_step_in_order(qtbot, make_window):
-    sampler = FakeSampler(delay_s=0.03)
+    sampler = FakeSampler(delay_s=0.08)   # time for the GUI to show each step, so none is skipped
     window = make_window(generate=sampler)
     load_sample(window)
     window.doc.set_settings(window.doc.settings.__class__(steps=8))
     previews, phases = [], []
-    window.viewport.set_preview = lambda clip: previews.append(clip)
-    window.phase_strip.set_phase = lambda phase: phases.append(phase)
+    show_preview, show_phase = window.viewport.set_preview, window.phase_strip.set_phase
+    window.viewport.set_preview = lambda clip: (previews.append(clip), show_preview(clip))
+    window.phase_strip.set_phase = lambda phase: (phases.append(phase), show_phase(phase))
 
     qtbot.waitExposed(window)
-    qtbot.wait(100)  # the window's first paint is not part of generating
+    qtbot.waitUntil(lambda: window.viewport.ready, timeout=10_000)  # start-up is not part of generating
+    qtbot.wait(100)
     # Probe the GUI thread: a 5 ms timer whose gaps show how long the event loop was blocked.
     gaps, clock = [], QElapsedTimer()
     probe = QTimer()
@@ -93,8 +95,11 @@ def test_generation_streams_every_step_in_order(qtbot, make_window):
     assert spread == sorted(spread, reverse=True)
     assert window.doc.clip is not None and window.doc.phase is not None
     assert not window.runner.running and not window.act_cancel.isEnabled()
-    print(f"GUI-thread max gap during generation: {max(gaps)} ms over {len(gaps)} ticks")
-    assert max(gaps) < 150   # the target is 50 ms; margin for a shared, loaded CI machine
+    # The first gap is the probe's own start; the 3D view renders every preview it is shown.
+    p50, p99 = np.percentile(gaps[1:], [50, 99])
+    print(f"GUI-thread gaps during generation: p50 {p50:.0f} ms, p99 {p99:.0f} ms, worst {max(gaps[1:])} ms "
+          f"over {len(gaps) - 1} ticks")
+    assert max(gaps[1:]) < 150   # the target is 50 ms; margin for a shared, loaded CI machine
 
 
 def test_cancel_stops_within_one_step(qtbot, make_window, dialogs):

@@ -18,6 +18,7 @@ def test_overlay_toggles_reach_the_viewport(qtbot, window):
     window.doc.set_result([walking_clip(sb.length, sb.fps)], None)
     view = window.viewport
     view.resize(480, 320)
+    qtbot.waitUntil(lambda: view.ready)
     with_overlays = grab_rgb(view)
     for name, action in window.overlay_actions.items():
         assert action.isChecked() and getattr(view.options, name)
