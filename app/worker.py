@@ -67,6 +67,7 @@ class GenerationWorker(QObject):
                     result: GenerationResult = stop.value
                     self.finished.emit(result)
                     return
+                event.preview  # decoded here, in the worker, not on the GUI thread
                 self._post(event)
         except Exception as e:  # any sampler failure becomes a message; the document is untouched
             traceback.print_exc()

@@ -33,8 +33,8 @@ class StoryboardCamera:
         """Distance in front of the image plane (larger = farther away). (..., 3) -> (...)."""
         return -(np.asarray(points) - np.asarray(self.target)) @ self.basis()[2]
 
-    def unproject_to_height(self, uv: np.ndarray, height: float = 0.0) -> np.ndarray:
-        """Sketch points (..., 2) -> world points (..., 3) on the plane y = height.
+    def unproject_to_height(self, uv: np.ndarray, height: float | np.ndarray = 0.0) -> np.ndarray:
+        """Sketch points (..., 2) -> world points (..., 3) on the plane y = height (a scalar or (...)).
 
         Undefined for a camera looking exactly along the horizon (elevation 0).
         """

@@ -349,7 +349,7 @@ def sample_retrieval(index: RetrievalIndex, storyboard: Storyboard, config: Adap
     clip = adapted.clip
     entities = clip.num_humans + clip.num_objects
     yield StepEvent(step=0, num_steps=1, t=0.0, latent=np.zeros((1, 0, entities, 0), np.float32),
-                    preview=clip, phase=np.asarray(clip.phase), energies={"retrieval_cost": adapted.match.cost})
+                    decode=lambda: clip, phase=np.asarray(clip.phase), energies={"retrieval_cost": adapted.match.cost})
     return GenerationResult(clips=[clip], wall_time_s=elapsed, first_step_s=elapsed, network_evals=0)
 
 

@@ -44,7 +44,7 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
     (pelvis height with it): the decoder draws bodies towards the average size."""
     fixed, all_offsets = [], []
     for h in range(joints.shape[1]):
-        offsets = fit_offsets(joints[:, h])
+        offsets = fit_offsets(joints[:, h], iterations=1)  # one refit of the branching bones is enough here
         scale = sketched_scale(offsets, storyboard, h) if storyboard is not None else 1.0
         root = joints[:, h, 0] * (1.0, scale, 1.0)
         offsets = offsets * scale
@@ -68,6 +68,6 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
     if config.contacts:
         joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact)
-    rotations = np.stack([inverse_kinematics(joints[:, h], offsets[h]) for h in range(joints.shape[1])], 1)
+    rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
                    bone_offsets=offsets.astype(np.float32), **kw)

@@ -127,18 +127,15 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         if not keys:
             continue
         lengths = np.linalg.norm(offsets[h], axis=-1)
-        rotations = inverse_kinematics(joints[:, h], offsets[h])                  # (N, 22, 3, 3)
-        turns, shifts = [], []
-        for key in keys:
-            posed = solve_keypose(joints[key.frame, h], key.points, key.mask, storyboard.camera, lengths,
-                                  config.foot_height)
-            delta = inverse_kinematics(posed, offsets[h]) @ np.swapaxes(rotations[key.frame], -1, -2)
-            turns.append(matrix_to_axis_angle(delta))
-            shifts.append(posed[PELVIS] - joints[key.frame, h, PELVIS])
         frames = [k.frame for k in keys]
+        rotations = inverse_kinematics(joints[:, h], offsets[h])                  # (N, 22, 3, 3)
+        posed = np.stack([solve_keypose(joints[k.frame, h], k.points, k.mask, storyboard.camera, lengths,
+                                        config.foot_height) for k in keys])      # (K, 22, 3)
+        delta = inverse_kinematics(posed, offsets[h]) @ np.swapaxes(rotations[frames], -1, -2)
+        turns, shifts = matrix_to_axis_angle(delta), posed[:, PELVIS] - joints[frames, h, PELVIS]
         n = len(joints)
-        turn = axis_angle_to_matrix(spread(n, frames, np.stack(turns), config.falloff))
-        root = joints[:, h, PELVIS] + spread(n, frames, np.stack(shifts), config.falloff)
+        turn = axis_angle_to_matrix(spread(n, frames, turns, config.falloff))
+        root = joints[:, h, PELVIS] + spread(n, frames, shifts, config.falloff)
         out[:, h] = forward_kinematics(root, turn @ rotations, offsets[h])
     return out
 
@@ -162,7 +159,7 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig 
             dist = np.linalg.norm(off, axis=-1, keepdims=True)
             on_stroke = uv + off * np.clip(1.0 - config.path_tolerance / np.maximum(dist, 1e-9), 0.0, None)
             height = pelvis[:, 1] + _grounding_height(out[span, h], config.foot_height)
-            lifted = np.stack([cam.unproject_to_height(uv, y) for uv, y in zip(on_stroke, height)])
+            lifted = cam.unproject_to_height(on_stroke, height)
             shift = gaussian_filter1d(lifted - pelvis, config.path_smoothing, axis=0, mode="nearest")
             # The span's offsets, held at its ends and faded out beyond them.
             full = spread(n, list(span), shift, config.falloff)

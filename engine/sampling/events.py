@@ -6,6 +6,8 @@ returns (StopIteration.value) a GenerationResult. Closing the generator cancels 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Callable
 
 import numpy as np
 
@@ -18,9 +20,16 @@ class StepEvent:
     num_steps: int
     t: float                     # solver time after this step (1 = noise, 0 = data)
     latent: np.ndarray           # (K, T_lat, V, d) current latent of all K variations
-    preview: MotionClip          # decoded motion of the current latent, variation 0
+    decode: Callable[[], MotionClip]  # decodes the current motion, variation 0 (see preview)
     phase: np.ndarray            # (N, 3) CTMC occupancy of approach / contact / carry per frame
     energies: dict[str, float] = field(default_factory=dict)  # energy name -> value at this step
+
+    @cached_property
+    def preview(self) -> MotionClip:
+        """The decoded motion of this step, decoded on first access: a consumer that does not
+        look (the command line, the benchmark) does not pay for it; the app's worker thread
+        reads it before handing the event to the GUI."""
+        return self.decode()
 
 
 @dataclass

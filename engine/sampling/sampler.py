@@ -62,9 +62,11 @@ class SamplerConfig:
     use_temporal_bias: bool = True  # trajectory attention bias ("w/o temporal bias")
     trajectory_only: bool = False   # only the trajectory energy ("trajectory-only")
     ctmc_every: int = 3
-    guidance_steps: int = 2         # energy steps on z0_hat per solver step
-    guidance_alpha: float = 0.5     # damping of the Polyak step
-    guidance_max_rms: float = 0.15  # cap on one step's RMS change, latent units
+    guidance_steps: int = 1         # energy steps on z0_hat per solver step
+    guidance_start: float = 0.7     # guide only once t <= this (near noise the network re-predicts
+                                    # z0_hat almost regardless of z, so early guidance is mostly lost)
+    guidance_alpha: float = 1.0     # damping of the Polyak step (1: the full linearised step)
+    guidance_max_rms: float = 0.25  # cap on one step's RMS change, latent units
     latent_weight: float = 0.05     # eta_lat, weight of E_lat against the raw energies
     final_refine_steps: int = 4     # extra energy steps on the final latent (physics stage)
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
@@ -204,19 +206,25 @@ class _Run:
 
     def _event(self, step: int, num: int, t: float, z: torch.Tensor, z0: torch.Tensor,
                energies: dict[str, float]) -> StepEvent:
-        motion = self._decode(z0)
         if self.first_step is None:
             self.first_step = time.perf_counter() - self.start
-        return StepEvent(step=step, num_steps=num, t=t, latent=z.numpy().copy(),
-                         preview=self._clip(motion, 0), phase=self._phase_array(0), energies=energies)
+        z0, phase = z0.clone(), self._phase_array(0)
+
+        def decode() -> MotionClip:  # the step's state is captured: it may run after later steps
+            with torch.no_grad():
+                return self._clip(self._decode(z0), 0, phase)
+
+        return StepEvent(step=step, num_steps=num, t=t, latent=z.numpy().copy(), decode=decode,
+                         phase=phase, energies=energies)
 
     def _phase_array(self, k: int) -> np.ndarray:
         if self.occupancy is None:
             return np.full((self.frames, 3), 1.0 / 3.0, np.float32)
         return self.occupancy[k, :self.frames].numpy().astype(np.float32)
 
-    def _clip(self, motion: dict[str, torch.Tensor], k: int) -> MotionClip:
-        """Variation k of a decoded motion as a clip of the storyboard's agents and objects."""
+    def _clip(self, motion: dict[str, torch.Tensor], k: int, phase: np.ndarray | None = None) -> MotionClip:
+        """Variation k of a decoded motion as a clip of the storyboard's agents and objects
+        (phase (N, 3): the occupancy to give it; None = the current plan's)."""
         n, h, o = self.frames, len(self.sb.agents), len(self.sb.objects)
         joints = motion["joints"][k, :n, :h].numpy()
         rot6d = motion["rot6d"][k, :n, :h].numpy()
@@ -226,7 +234,7 @@ class _Run:
                       obj_anchors=motion["obj_anchors"][k, :n, :o].numpy(),
                       obj_type=np.array([ob.spec.type for ob in self.sb.objects]),
                       obj_size=np.array([ob.spec.size for ob in self.sb.objects], np.float32))
-        phase = self._phase_array(k)
+        phase = self._phase_array(k) if phase is None else phase
         contact = _hand_contact(joints, kw.get("obj_anchors"), phase)
         return MotionClip(fps=self.sb.fps, joints=_finite(joints), rot6d=_finite(rot6d), phase=phase,
                           contact=contact, scenario="generated", **{k2: _finite(v) if v.dtype.kind == "f" else v
@@ -279,7 +287,7 @@ class _Run:
             if cfg.use_ctmc and i % cfg.ctmc_every == 0:
                 self._plan(z0, self._decode(z0))
             energies = {}
-            if cfg.use_energy or cfg.use_latent:
+            if (cfg.use_energy or cfg.use_latent) and t_next <= cfg.guidance_start:
                 z0, energies = self._guide(z0, t_next, cfg.guidance_steps)
             z = (1 - t_next) * z0 + t_next * noise if t_next > 0 else z0
             entity_pos = b.vqvae.decode_lowres(z0)

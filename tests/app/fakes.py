@@ -73,7 +73,7 @@ class FakeSampler:
                 self.yielded.append(step)
                 yield StepEvent(step=step, num_steps=settings.steps, t=1 - progress,
                                 latent=np.zeros((settings.variations, 4, 3, 8), np.float32),
-                                preview=clip, phase=clip.phase, energies={"keyframe": 1 / (step + 1)})
+                                decode=lambda clip=clip: clip, phase=clip.phase, energies={"keyframe": 1 / (step + 1)})
         except GeneratorExit:
             self.closed.append(True)
             raise
