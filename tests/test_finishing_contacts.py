@@ -92,9 +92,15 @@ def test_handshake_brings_wrists_together():
     assert before.mean() > 0.15
     np.testing.assert_allclose(gap, config.hand_gap, atol=1e-6)
     np.testing.assert_allclose(bone_lengths(out), bone_lengths(joints), atol=1e-9)
-    # Nobody holds the object: it stays still on the ground where it was decoded.
+    # Nobody holds the object: it stays still on the ground (where: the next test).
     np.testing.assert_allclose(held[:, 0], np.broadcast_to(held[0, 0], held[:, 0].shape), atol=1e-12)
     assert held[0, 0, 1] == 0.0
+
+
+def test_an_unsketched_object_nobody_holds_rests_where_it_was_decoded():
+    sb, joints, pose = scrambled("handshake")
+    sb.object_keys = []
+    held = hold_object(joints, pose, sb)
     np.testing.assert_allclose(held[0, 0, [0, 2]], np.median(pose[:, 0, [0, 2]], axis=0))
 
 
@@ -106,6 +112,15 @@ def test_no_contacts_grounds_a_still_object():
     np.testing.assert_allclose(held[..., 1], 0.0, atol=1e-12)
     np.testing.assert_allclose(held, np.broadcast_to(held[:1], held.shape), atol=1e-12)
     np.testing.assert_array_equal(out, joints)
+
+
+def test_an_object_nobody_holds_rests_where_it_was_sketched():
+    clip = synthesize("handshake", 4, fps=20)             # the prop stands by, never touched
+    sb = sketchify(clip, 4, 0.0, 4)
+    assert sb.object_keys and not any(c.object for c in sb.contacts)
+    pose = clip.obj_pose + np.array([1.0, 0.3, -0.8, 0, 0, 0, 0])
+    held = hold_object(clip.joints.astype(float), pose, sb)
+    np.testing.assert_allclose(held[..., :3], clip.obj_pose[..., :3], atol=0.01)
 
 
 def one_person(n: int = 40):

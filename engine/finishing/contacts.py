@@ -123,18 +123,31 @@ def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints
     return pos
 
 
+def sketched_rest(storyboard: Storyboard, o: int) -> np.ndarray | None:
+    """Where object o rests according to its sketch (3,), or None without object keys: the
+    centre of each sketched silhouette, on the ray through it at half the object's height (an
+    object on the ground has its centre there), averaged over the keys."""
+    spec, keys = storyboard.objects[o].spec, [k for k in storyboard.object_keys
+                                              if k.object == storyboard.objects[o].id]
+    if not keys:
+        return None
+    centres = np.array([(k.outline.min(axis=0) + k.outline.max(axis=0)) / 2 for k in keys])
+    return storyboard.camera.unproject_to_height(centres, spec.size[1] / 2).mean(axis=0) - (0.0, spec.size[1] / 2, 0.0)
+
+
 def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
-              spec: ObjectSpec, fps: float, config: ContactConfig) -> np.ndarray:
+              spec: ObjectSpec, fps: float, config: ContactConfig, rest: np.ndarray | None = None) -> np.ndarray:
     """One object's pose (N, 7) from joints (N, H, 22, 3), the local grip each hand holds
-    (N, 2H, 3) where held (N, 2H), and the decoded pose (N, 7)."""
+    (N, 2H, 3) where held (N, 2H), the decoded pose (N, 7) and, for an object nobody holds,
+    its sketched resting place (3,) if any."""
     n, h = joints.shape[:2]
     wrists = joints[:, :, list(HANDS)].reshape(n, 2 * h, 3)
     decoded_yaw = _yaw_of(decoded[:, 3:])
     still_yaw = np.arctan2(np.mean(np.sin(decoded_yaw)), np.mean(np.cos(decoded_yaw)))
     spans = _runs(held.any(axis=1))
-    if not spans:  # never held: a still object where it was decoded, on the ground
-        return pose_array(np.tile(_grounded(np.median(decoded[:, :3], axis=0), config), (n, 1)),
-                          np.full(n, still_yaw))
+    if not spans:  # never held: a still object where it was sketched (else decoded), on the ground
+        place = rest if rest is not None else np.median(decoded[:, :3], axis=0)
+        return pose_array(np.tile(_grounded(place, config), (n, 1)), np.full(n, still_yaw))
 
     fit_yaw, defined = _fit_yaw(wrists, grips, held, config.min_spread)
     # One hand cannot turn the object: keep the last defined yaw (before any, the first one).
@@ -190,7 +203,7 @@ def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
             held[c.start:c.end + 1, hand] = True
             grips[c.start:c.end + 1, hand] = table[o, c.anchor]
         out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
-                              storyboard.fps, config)
+                              storyboard.fps, config, sketched_rest(storyboard, o))
     return out
 
 
