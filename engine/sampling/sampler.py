@@ -13,7 +13,8 @@ current step predicts the final motion to be): the decoded motion's energies, ro
 latent through the Jacobian surrogate B_rho (or exact autograd through the decoder when the
 bundle's surrogate is untrained), plus the latent energy E_lat, move z0_hat; the step then keeps
 its noise estimate, so the correction enters the trajectory at the scale (1 - t) it would have
-had at that time. An optional micro-Langevin pass with the teacher's score sharpens the end.
+had at that time. An optional micro-Langevin pass with the teacher's score sharpens the end, and
+the final clips go through engine.finishing (keyposes, paths, feet and contacts made exact).
 
 Teacher methods (DDPM 1000 steps, DDIM) run the frozen teacher unguided, as the
 "COLLAGE Teacher" baseline. Ablations are flags of the same config.
