@@ -73,7 +73,9 @@ def test_later_stage_without_prerequisite_is_a_clear_error(tmp_path):
 def _ddp_worker(rank: int, world: int, init_file: str, runs: str):
     torch.distributed.init_process_group("gloo", init_method=f"file://{init_file}", rank=rank, world_size=world)
     try:
-        train("vqvae", tiny_config(2), FakeClips(4), runs=runs, progress=False)
+        # A checkpoint is due at every step on rank 0's clock (a collective save on both ranks).
+        train("vqvae", dataclasses.replace(tiny_config(2), checkpoint_every_s=0.0), FakeClips(4), runs=runs,
+              progress=False)
         flat = torch.cat([p.detach().flatten() for p in _trained_vqvae_params(runs)])
         gathered = [torch.zeros_like(flat) for _ in range(world)]
         torch.distributed.all_gather(gathered, flat)

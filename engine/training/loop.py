@@ -80,6 +80,16 @@ def _dist_info() -> tuple[int, int]:
     return 0, 1
 
 
+def _all_agree(due: bool, world: int) -> bool:
+    """Rank 0's decision on every rank: save() is a collective, so ranks whose clocks disagree
+    about a time-based checkpoint would otherwise call different collectives and fail."""
+    if world == 1:
+        return due
+    flag = torch.tensor([int(due)])
+    dist.broadcast(flag, 0)
+    return bool(flag.item())
+
+
 def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path, resume: bool = False,
              progress: bool = True) -> dict:
     """Train task.trainable for cfg.steps_for(task.name) steps; returns the final metrics.
@@ -145,7 +155,7 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
                 if step % cfg.log_every == 0 or step == steps - 1:
                     log.write(json.dumps({"step": step, **{k: v.item() for k, v in terms.items()}}) + "\n")
                     log.flush()
-            if time.monotonic() - last_save > cfg.checkpoint_every_s:
+            if _all_agree(time.monotonic() - last_save > cfg.checkpoint_every_s, world):
                 save(step + 1)
                 last_save = time.monotonic()
         save(steps)
