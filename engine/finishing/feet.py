@@ -23,6 +23,7 @@ from scipy.ndimage import distance_transform_edt, gaussian_filter1d, maximum_fil
 from ..rotations import normalize
 from ..skeleton import ANKLES, FEET, JOINT_INDEX
 from ..synth.reach import UP, two_bone_ik
+from ..synth.trajectory import smoothstep
 
 HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
 KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
@@ -111,8 +112,8 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
     # the correction fades out over blend_frames.
     frames = np.arange(n)
     carried = np.stack([np.interp(frames, frames[on], correction[on, k]) for k in range(3)], -1)
-    ramp = np.clip(1.0 - distance_transform_edt(~on) / (config.blend_frames + 1), 0.0, 1.0)
-    goal = foot + (ramp * ramp * (3 - 2 * ramp))[:, None] * carried
+    ramp = 1.0 - distance_transform_edt(~on) / (config.blend_frames + 1)
+    goal = foot + smoothstep(ramp)[:, None] * carried
     # A short gap is a step from one plant to the next, eased so the foot leaves and lands
     # slowly. A swing keeps its own shape, shifted from the first plant's correction to the
     # next one's; a gap that never leaves the floor was a slide and becomes an arc that rises
@@ -121,7 +122,7 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
         if b - a > config.max_step_frames:
             continue
         s = (frames[a:b] - a + 1) / (b - a + 1)
-        ease = (s * s * (3 - 2 * s))[:, None]
+        ease = smoothstep(s)[:, None]
         if foot[a:b, 1].max() < config.step_height:
             goal[a:b] = target[a - 1] + ease * (target[b] - target[a - 1])
             lift = config.step_height - config.foot_height

@@ -27,6 +27,7 @@ from ..controls import closest_on_polyline
 from ..rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from ..skeleton import FEET, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
+from ..synth.trajectory import smoothstep
 
 PELVIS = JOINT_INDEX["pelvis"]
 
@@ -112,8 +113,7 @@ def spread(n: int, keys: list[int], values: np.ndarray, falloff: int) -> np.ndar
     flat = values.reshape(len(keys), -1)
     out = np.stack([np.interp(frames, keys_arr, flat[:, i]) for i in range(flat.shape[1])], -1)
     gap = np.maximum(keys_arr[0] - frames, frames - keys_arr[-1]).clip(min=0)
-    x = np.clip(1.0 - gap / max(falloff, 1), 0.0, 1.0)
-    return (out * (x * x * (3 - 2 * x))[:, None]).reshape((n,) + values.shape[1:])
+    return (out * smoothstep(1.0 - gap / max(falloff, 1))[:, None]).reshape((n,) + values.shape[1:])
 
 
 def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
