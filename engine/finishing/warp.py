@@ -30,6 +30,8 @@ from ..storyboard import Storyboard
 from ..synth.trajectory import smoothstep
 
 PELVIS = JOINT_INDEX["pelvis"]
+LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera is too level to
+              # place points by their height
 
 
 @dataclass
@@ -39,7 +41,7 @@ class WarpConfig:
     path_passes: int = 2          # smoothing pulls points off the stroke a little; project again
     path_tolerance: float = 0.03  # m in the sketch plane; closer than this to its stroke, a pelvis is
                                   # left alone (a hand-drawn stroke wobbles; the walk should not)
-    foot_height: float = 0.02     # m; height of the foot joint standing on the ground
+    foot_height: float = 0.02     # m; height of the foot joint standing on the ground (as FeetConfig's)
 
 
 LIMBS = [JOINT_INDEX[n] for n in ("l_knee", "r_knee", "l_ankle", "r_ankle", "l_elbow", "r_elbow",
@@ -86,7 +88,7 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
             continue
         origin, s_now = _ray_depth(camera, uv[j], joints[j])
         if p < 0:  # the pelvis keeps its height; a level camera keeps its depth instead
-            s = (joints[j, 1] - origin[1]) / back[1] if abs(back[1]) > 0.05 else s_now
+            s = (joints[j, 1] - origin[1]) / back[1] if abs(back[1]) > LEVEL else s_now
             out[j] = origin + s * back
             continue
         # |origin + s back - parent| = length: a quadratic in s; the root nearer the pose wins.
@@ -99,7 +101,7 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
             continue
         roots = -half_b + np.array([-1.0, 1.0]) * np.sqrt(disc)
         out[j] = origin + roots[np.argmin(np.abs(roots - s_now))] * back
-    if abs(back[1]) > 0.05:
+    if abs(back[1]) > LEVEL:
         out += _grounding_height(out, foot_height) / back[1] * back
     return out
 
@@ -146,7 +148,7 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig 
     offset is smoothed and fades out around the span. joints (N, H, 22, 3) -> same."""
     out = joints.copy()
     n, cam = len(joints), storyboard.camera
-    level = abs(cam.basis()[2, 1]) <= 0.05           # a level camera cannot place points by height
+    level = abs(cam.basis()[2, 1]) <= LEVEL
     for stroke in storyboard.trajectories:
         if stroke.joint != "pelvis" or level:
             continue
