@@ -16,8 +16,8 @@ from engine.render import RenderUnavailableError, shared_context  # noqa: E402
 from engine.render.example import carry_clip, carry_storyboard  # noqa: E402
 
 
-@pytest.fixture
-def viewport(qtbot):
+def new_viewport(qtbot) -> Viewport:
+    """A 320x240 viewport holding the carry example's clip, not yet shown."""
     try:
         shared_context()
     except RenderUnavailableError as e:
@@ -25,9 +25,14 @@ def viewport(qtbot):
     view = Viewport()
     qtbot.addWidget(view)
     view.resize(320, 240)
-    clip = carry_clip(12)
-    view.set_clip(clip)
-    view.set_storyboard(carry_storyboard(clip))
+    view.set_clip(carry_clip(12))
+    return view
+
+
+@pytest.fixture
+def viewport(qtbot):
+    view = new_viewport(qtbot)
+    view.set_storyboard(carry_storyboard(carry_clip(12)))
     view.show()
     qtbot.waitExposed(view)
     qtbot.waitUntil(lambda: view.ready)  # the first paint showed a placeholder, then it warmed up
@@ -108,14 +113,7 @@ def test_grab_png_writes_a_picture(viewport, tmp_path):
 
 
 def test_first_paint_is_a_placeholder_then_the_scene(qtbot):
-    try:
-        shared_context()
-    except RenderUnavailableError as e:
-        pytest.skip(str(e))
-    view = Viewport()
-    qtbot.addWidget(view)
-    view.resize(320, 240)
-    view.set_clip(carry_clip(12))
+    view = new_viewport(qtbot)
     view.show()
     first = grab_rgb(view)   # painted before the event loop could warm anything up
     assert not view.ready and view.rendered_size is None
