@@ -22,7 +22,7 @@ stage() {  # stage NAME STEPS THREADS
     [ -f "runs/$1/final.pt" ] || sketch2colab train "$1" "${ARGS[@]}" --steps "$2" --threads "$3" --resume
 }
 
-stage vqvae 4000 2 & stage encoders 1000 1 & wait
+stage vqvae 8000 2 & stage encoders 1000 1 & wait
 stage teacher 6500 2 & { stage ctmc 500 1; stage surrogate 300 1; stage potential 400 1; } & wait
 stage student1 4000 2
 stage student2 600 2

@@ -36,7 +36,7 @@ STD_FLOOR = 0.01
 class VQVAEConfig:
     latent_dim: int = 32          # d of the entity latent
     channels: int = 128           # width of the conv stacks
-    levels: int = 2               # residual quantizer levels L
+    levels: int = 4               # residual quantizer levels L
     codebook_size: int = 512      # K_l, the same for every level
     downsample_stages: int = 2    # each halves time: 2 -> x4
     anchors_per_object: int = NUM_ANCHORS
