@@ -38,7 +38,8 @@ BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
 @dataclass
 class ContactConfig:
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
-    lift_frames: int = 6           # frames a resting object eases into the holding hands' fit
+    lift_frames: int = 6           # frames a resting object eases into the holding hands' fit (and,
+                                   # at least, a released one slides to its sketched landing place)
     smooth_sigma: float = 1.5      # frames: Gaussian smoothing of a held object's fitted path
     rest_height: float = 0.0       # m the base of a resting object sits above the ground
     hand_gap: float = 0.09         # m between two clasped wrists (the synthesizer's handshake grip)
@@ -123,30 +124,36 @@ def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints
     return pos
 
 
-def sketched_rest(storyboard: Storyboard, o: int) -> np.ndarray | None:
-    """Where object o rests according to its sketch (3,), or None without object keys: the
-    centre of each sketched silhouette, on the ray through it at half the object's height (an
-    object on the ground has its centre there), averaged over the keys."""
-    spec, keys = storyboard.objects[o].spec, [k for k in storyboard.object_keys
-                                              if k.object == storyboard.objects[o].id]
-    if not keys:
-        return None
-    centres = np.array([(k.outline.min(axis=0) + k.outline.max(axis=0)) / 2 for k in keys])
-    return storyboard.camera.unproject_to_height(centres, spec.size[1] / 2).mean(axis=0) - (0.0, spec.size[1] / 2, 0.0)
+def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | None = None) -> np.ndarray | None:
+    """Where object o rests on the ground over frames [first, last] according to its sketch (3,),
+    or None when nothing sketched falls there. An orthographic sketch gives a grounded object's
+    place exactly: each object key's silhouette centre lies on the ray through the object's centre
+    (half its height up), and an object path's end points are its base's projection at the
+    path's first and last frames. The cues in range are averaged (hand-drawn ones wobble)."""
+    obj = storyboard.objects[o]
+    last = storyboard.length - 1 if last is None else last
+    half = obj.spec.size[1] / 2
+    cam = storyboard.camera
+    places = [cam.unproject_to_height((k.outline.min(axis=0) + k.outline.max(axis=0)) / 2, half) - (0.0, half, 0.0)
+              for k in storyboard.object_keys if k.object == obj.id and first <= k.frame <= last]
+    for path in (p for p in storyboard.object_paths if p.object == obj.id):
+        places += [cam.unproject_to_height(path.points[i], 0.0)
+                   for i, frame in ((0, path.start), (-1, path.end)) if first <= frame <= last]
+    return np.mean(places, axis=0) if places else None
 
 
 def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
-              spec: ObjectSpec, fps: float, config: ContactConfig, rest: np.ndarray | None = None) -> np.ndarray:
+              spec: ObjectSpec, fps: float, config: ContactConfig, rests: list[np.ndarray | None]) -> np.ndarray:
     """One object's pose (N, 7) from joints (N, H, 22, 3), the local grip each hand holds
-    (N, 2H, 3) where held (N, 2H), the decoded pose (N, 7) and, for an object nobody holds,
-    its sketched resting place (3,) if any."""
+    (N, 2H, 3) where held (N, 2H), the decoded pose (N, 7) and its sketched resting places, one
+    (or None) per gap around the hold spans (see hold_object)."""
     n, h = joints.shape[:2]
     wrists = joints[:, :, list(HANDS)].reshape(n, 2 * h, 3)
     decoded_yaw = _yaw_of(decoded[:, 3:])
     still_yaw = np.arctan2(np.mean(np.sin(decoded_yaw)), np.mean(np.cos(decoded_yaw)))
     spans = _runs(held.any(axis=1))
     if not spans:  # never held: a still object where it was sketched (else decoded), on the ground
-        place = rest if rest is not None else np.median(decoded[:, :3], axis=0)
+        place = rests[0] if rests[0] is not None else np.median(decoded[:, :3], axis=0)
         return pose_array(np.tile(_grounded(place, config), (n, 1)), np.full(n, still_yaw))
 
     fit_yaw, defined = _fit_yaw(wrists, grips, held, config.min_spread)
@@ -162,9 +169,10 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
 
     pos, yaw = np.empty((n, 3)), np.empty(n)
     first = spans[0][0]
-    # Before the first hold it rests where it is picked up.
-    pos[:first], yaw[:first] = _grounded(fit_pos[first], config), fit_yaw[first]
-    for start, end in spans:
+    # Before the first hold it rests where it was sketched, else where it is picked up.
+    pos[:first] = _grounded(rests[0] if rests[0] is not None else fit_pos[first], config)
+    yaw[:first] = fit_yaw[first]
+    for (start, end), landing in zip(spans, rests[1:]):
         held_pos = gaussian_filter1d(fit_pos[start:end + 1], config.smooth_sigma, axis=0, mode="nearest")
         held_yaw = gaussian_filter1d(np.unwrap(fit_yaw[start:end + 1]), config.smooth_sigma, mode="nearest")
         held_pos[:, 1] = np.maximum(held_pos[:, 1], config.rest_height)  # never through the floor
@@ -173,11 +181,15 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
             held_pos = pos[start - 1] + w[:, None] * (held_pos - pos[start - 1])
             held_yaw = blend_yaw(yaw[start - 1], held_yaw, w)
         pos[start:end + 1], yaw[start:end + 1] = held_pos, held_yaw
-        # Released in the air, it drops under gravity to the ground and rests there until the
-        # next hold (or the end).
+        # Released, it drops under gravity to the ground and rests there until the next hold (or
+        # the end), sliding on its way to where the sketch puts it down.
         t = np.arange(1, n - end) / fps
         pos[end + 1:] = held_pos[-1]
         pos[end + 1:, 1] = np.maximum(held_pos[-1, 1] - 0.5 * GRAVITY * t ** 2, config.rest_height)
+        if landing is not None:
+            fall = max(np.sqrt(2 * max(held_pos[-1, 1] - config.rest_height, 0.0) / GRAVITY) * fps, config.lift_frames)
+            w = smoothstep(np.arange(1, n - end) / fall)[:, None] * (1.0, 0.0, 1.0)
+            pos[end + 1:] += w * (landing - pos[end + 1:])
         yaw[end + 1:] = held_yaw[-1]
     return pose_array(pos, yaw)
 
@@ -202,8 +214,10 @@ def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
             hand = 2 * storyboard.agent_index(c.agent) + HAND_NAMES.index(c.hand)
             held[c.start:c.end + 1, hand] = True
             grips[c.start:c.end + 1, hand] = table[o, c.anchor]
+        bounds = [-1, *(f for span in _runs(held.any(axis=1)) for f in span), n]   # gaps between the spans
+        rests = [sketched_rest(storyboard, o, a + 1, b - 1) for a, b in zip(bounds[::2], bounds[1::2])]
         out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
-                              storyboard.fps, config, sketched_rest(storyboard, o))
+                              storyboard.fps, config, rests)
     return out
 
 
