@@ -4,7 +4,7 @@ Two steps, run on decoded joint positions (N frames, H people, 22 joints, world 
 
 1. `hold_object` rebuilds each object's pose from the storyboard's contacts: a rigid body that
    moves only while held (an upright yaw + translation fit of its grips to the holding wrists),
-   resting on the ground before, between and after holds.
+   resting on the ground before, between and after holds, where the sketch puts it.
 2. `reach_contacts` moves each contact's wrist onto its grip (or the other person's hand) by
    exact two-bone IK from the shoulder, eased in before the span and out after it. Only elbows
    and wrists move, and every bone keeps its length.
