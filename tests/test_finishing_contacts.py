@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from engine.controls import build_controls
-from engine.finishing.contacts import ContactConfig, hold_object, object_anchors, reach_contacts
+from engine.finishing.contacts import (ContactConfig, _arm_penetration, _swivel_clear, hold_object, object_anchors,
+                                      reach_contacts)
 from engine.metrics import anchor_error
 from engine.objects import ObjectSpec
 from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
@@ -95,6 +96,21 @@ def test_handshake_brings_wrists_together():
     # Nobody holds the object: it stays still on the ground (where: the next test).
     np.testing.assert_allclose(held[:, 0], np.broadcast_to(held[0, 0], held[:, 0].shape), atol=1e-12)
     assert held[0, 0, 1] == 0.0
+
+
+def test_an_elbow_in_an_object_swivels_out_keeping_its_bones():
+    shoulder, wrist = np.array([[0.0, 1.4, 0.0]]), np.array([[0.45, 1.0, 0.0]])
+    elbow = np.array([[0.3, 1.45, 0.0]])                   # bent up and out, into the box above
+    box = ObjectSpec("box")
+    pose = np.array([[[0.35, 1.3, 0.0, 1.0, 0.0, 0.0, 0.0]]])  # (M, O, 7): the box's base at 1.3 m
+    before = _arm_penetration(shoulder[:, None], elbow[:, None], wrist[:, None], pose, [box])
+    moved = _swivel_clear(shoulder, elbow, wrist, pose, [box], cost=0.01)
+    after = _arm_penetration(shoulder[:, None], moved[:, None], wrist[:, None], pose, [box])
+    assert before[0, 0] > 0.05 and after[0, 0] <= 0.0
+    clear = np.array([[0.15, 1.0, 0.1]])                   # an elbow already clear stays
+    np.testing.assert_allclose(_swivel_clear(shoulder, clear, wrist, pose, [box], cost=0.01), clear)
+    for a, b in ((shoulder, elbow), (wrist, elbow)):
+        np.testing.assert_allclose(np.linalg.norm(moved - a, axis=-1), np.linalg.norm(b - a, axis=-1))
 
 
 def test_an_unsketched_object_nobody_holds_rests_where_it_was_decoded():

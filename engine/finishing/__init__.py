@@ -67,7 +67,7 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         pose = hold_object(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
         kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
     if config.contacts:
-        joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact)
+        joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact, kw.get("obj_pose"))
     rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
                    bone_offsets=offsets.astype(np.float32), **kw)

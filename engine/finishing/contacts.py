@@ -7,7 +7,8 @@ Two steps, run on decoded joint positions (N frames, H people, 22 joints, world 
    resting on the ground before, between and after holds, where the sketch puts it.
 2. `reach_contacts` moves each contact's wrist onto its grip (or the other person's hand) by
    exact two-bone IK from the shoulder, eased in before the span and out after it. Only elbows
-   and wrists move, and every bone keeps its length.
+   and wrists move, and every bone keeps its length; an elbow whose arm would pass through an
+   object swivels about the shoulder-wrist line until it does not.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ..metrics import BONES, body_points
+from ..metrics import BONES, JOINT_RADII, body_points
 from ..objects import ObjectSpec, local_to_world, world_to_local
 from ..rotations import normalize, quat_to_matrix
 from ..skeleton import HANDS, JOINT_INDEX, JOINT_NAMES
@@ -33,6 +34,8 @@ _ARM = [*ELBOWS, *HANDS]
 # engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
 BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
                         + [child not in _ARM for _, child in BONES])
+SWIVELS = np.deg2rad(np.arange(-180, 180, 5))  # elbow angles about the shoulder-wrist line tried
+                                               # to take a forearm out of an object (0 included)
 
 
 @dataclass
@@ -45,6 +48,7 @@ class ContactConfig:
     hand_gap: float = 0.09         # m between two clasped wrists (the synthesizer's handshake grip)
     min_spread: float = 1e-4       # m^2: grip spread below which the yaw fit is undefined (one hand)
     clear_iterations: int = 4      # pushes of a held object out of its holders' bodies (0: none)
+    swivel_cost: float = 0.01      # m of penetration worth turning an elbow by one radian
 
 
 def _anchor_table(storyboard: Storyboard) -> np.ndarray:
@@ -260,14 +264,47 @@ def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storybo
     return target, weight
 
 
+def _arm_penetration(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
+                     specs: list[ObjectSpec]) -> np.ndarray:
+    """Deepest penetration (M, C) of an arm's spheres (upper-arm middle, elbow, forearm middle;
+    engine.metrics' radii) into any object or the ground. shoulder, wrist (M, 1, 3); elbow
+    (M, C, 3) C candidates; obj_pose (M, O, 7). The wrist is left out: it holds on at its grip."""
+    s, e, w = (JOINT_RADII[j] for j in (SHOULDERS[0], ELBOWS[0], HANDS[0]))
+    radii = np.array([(s + e) / 2, e, (e + w) / 2])
+    points = np.stack(np.broadcast_arrays((shoulder + elbow) / 2, elbow, (elbow + wrist) / 2), axis=2)  # (M, C, 3, 3)
+    m, c = elbow.shape[:2]
+    depth = np.max(radii - points[..., 1], axis=-1)
+    for o, spec in enumerate(specs):
+        local = world_to_local(points.reshape(m, -1, 3), obj_pose[:, o]).reshape(points.shape)
+        depth = np.maximum(depth, np.max(radii - spec.sdf_local(local), axis=-1))
+    return depth
+
+
+def _swivel_clear(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
+                  specs: list[ObjectSpec], cost: float) -> np.ndarray:
+    """Elbows (M, 3) turned about the shoulder-wrist line (which keeps both bone lengths) by the
+    angle of SWIVELS that best trades penetration into the objects (obj_pose (M, O, 7)) against
+    turning: `cost` metres of penetration per radian. shoulder, elbow, wrist (M, 3)."""
+    axis = normalize(wrist - shoulder)[:, None]
+    centre = shoulder[:, None] + np.sum((elbow[:, None] - shoulder[:, None]) * axis, -1, keepdims=True) * axis
+    out = elbow[:, None] - centre
+    cos, sin = np.cos(SWIVELS)[:, None], np.sin(SWIVELS)[:, None]
+    candidates = centre + cos * out + sin * np.cross(axis, out)                    # (M, C, 3)
+    depth = _arm_penetration(shoulder[:, None], candidates, wrist[:, None], obj_pose, specs)
+    score = np.maximum(depth, 0.0) + cost * np.abs(SWIVELS)
+    return candidates[np.arange(len(elbow)), np.argmin(score, axis=1)]
+
+
 def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboard: Storyboard,
-                   config: ContactConfig = ContactConfig()) -> np.ndarray:
+                   config: ContactConfig = ContactConfig(), obj_pose: np.ndarray | None = None) -> np.ndarray:
     """Put every contact's wrist on its target by two-bone IK from the fixed shoulder.
 
     joints (N, H, 22, 3); obj_anchors (N, O, K, 3) (see object_anchors), or None when the
     storyboard has only hand-to-hand contacts. Returns new joints (N, H, 22, 3): elbows and
     wrists of contact arms move, blended in over `blend_frames` before each span and out after;
     bone lengths are kept exactly; a target out of reach gets the straightened arm pointing at it.
+    With the objects' poses obj_pose (N, O, 7), an elbow whose arm would pass through an object
+    swivels about the shoulder-wrist line to where it does not (or least does).
     """
     joints = np.asarray(joints, float)
     target, weight = _contact_targets(joints, obj_anchors, storyboard, config)
@@ -288,6 +325,10 @@ def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboar
         fallback = -UP - forward[moving]
         pole = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-3 * upper, bend, fallback)
         new_elbow, new_wrist = two_bone_ik(shoulder, goal, upper, lower, pole)
+        if obj_pose is not None and moving.any():
+            frames = np.nonzero(moving)[0]
+            new_elbow = _swivel_clear(shoulder, new_elbow, new_wrist, obj_pose[frames],
+                                      [o.spec for o in storyboard.objects], config.swivel_cost)
         out[..., ELBOWS[side], :][moving] = new_elbow
         out[..., HANDS[side], :][moving] = new_wrist
     return out
