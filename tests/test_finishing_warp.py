@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 
 from engine.finishing import consistent_skeleton, finish
-from engine.finishing.warp import follow_paths, solve_keypose, spread, warp_to_keyposes
+from engine.finishing.warp import follow_paths, sketched_scale, solve_keypose, spread, warp_to_keyposes
 from engine.metrics import keypose_errors_2d, point_polyline_distance
 from engine.controls import build_controls
 from engine.sketchify import sketchify
-from engine.skeleton import bone_lengths
+from engine.skeleton import bone_lengths, fit_offsets
 from engine.synth import synthesize
 
 
@@ -32,6 +32,13 @@ def test_spread_is_exact_at_keys_linear_between_and_fades_outside():
     assert out[10, 0] == pytest.approx(1.0) and out[20, 0] == pytest.approx(3.0)
     assert out[15, 0] == pytest.approx(2.0)
     assert out[4, 0] == 0.0 and out[26, 0] == 0.0 and 0 < out[7, 0] < 1
+
+
+@pytest.mark.parametrize("drawn, expected", [(1.0, 1.0), (1.05, 1.05), (0.8, 1.0), (1.4, 1.1)])
+def test_sketched_scale_grows_a_body_the_sketch_shows_larger_by_at_most_a_tenth(scene, drawn, expected):
+    clip, sb = scene
+    offsets = fit_offsets(clip.joints[:, 0].astype(float), iterations=1) / drawn   # the model drew it smaller
+    assert sketched_scale(offsets, sb, 0) == pytest.approx(expected, abs=0.03)
 
 
 def test_solve_keypose_lands_on_the_sketch_with_the_bones_kept_and_the_feet_on_the_ground(scene):
