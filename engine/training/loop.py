@@ -130,9 +130,11 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
                                     "step": step, "rng": rngs, "stage": task.name,
                                     "elapsed_s": elapsed_before + time.monotonic() - began}, ckpt_path)
 
+    # Its own generator: a DataLoader otherwise draws its workers' base seed from the global RNG,
+    # one draw per run, so a resumed run would shift the stream that dead-code restarts use.
     loader = DataLoader(EpochView(dataset), batch_sampler=StepBatches(len(dataset), cfg.batch_size, steps, start,
                                                                        cfg.seed, rank, world),
-                        num_workers=cfg.num_workers)
+                        num_workers=cfg.num_workers, generator=torch.Generator().manual_seed(cfg.seed))
     bar = tqdm(total=steps, initial=start, desc=task.name, disable=not progress or rank != 0, dynamic_ncols=True)
     log = open(run_dir / "log.jsonl", "a") if rank == 0 else None
     last_save, terms, step = time.monotonic(), {}, start
