@@ -1,4 +1,4 @@
-"""Temporal U-Net backbone: shapes, conditioning routes, entity-distance bias, speed."""
+"""Temporal U-Net backbone: shapes, conditioning routes, entity-distance bias."""
 
 import torch
 
