@@ -275,6 +275,115 @@ def test_batch_of_variations_is_independent():
     assert total.shape == (2,) and float(total[0]) == pytest.approx(float(alone[0]))
 
 
+# ---- the fast paths against plain references ---------------------------------------------------
+
+def test_context_constants_follow_the_context():
+    """The storyboard-only constants are cached per context: changing the config, replacing a
+    field or editing one in place must give what a fresh context gives."""
+    m, ctx = busy_scene()
+
+    def fresh():
+        return E.EnergyContext(**{f: getattr(ctx, f) for f in vars(ctx)})
+
+    def same(a, b):
+        return float(E.keyframe_energy(m, a)) == pytest.approx(float(E.keyframe_energy(m, b)), rel=1e-12)
+
+    E.keyframe_energy(m, ctx)                       # fills the cache
+    ctx.config.key_time_sigma = 0.0
+    assert same(ctx, fresh())
+    ctx.kp2d = ctx.kp2d + 0.05                      # a new tensor
+    assert same(ctx, fresh())
+    with torch.no_grad():
+        ctx.kp2d[..., 0] += 0.05                    # the same tensor, edited in place
+    assert same(ctx, fresh())
+
+
+def _reference_soft_distance(points, a, b, temperature, valid=None):
+    """Plain autograd soft distance of points (..., D) to their segments a, b (..., K, D)."""
+    return E.soft_min_mean(E.segment_sq_distance(points[..., None, :], a, b), temperature, valid)
+
+
+def test_soft_polyline_gradient_matches_autograd():
+    """The polyline distance computes its gradient in closed form (_SoftDistance): it must match
+    autograd through the plain (P, L, D) computation with the softmin weights held constant."""
+    rng = np.random.default_rng(5)
+    poly = torch.tensor(rng.normal(size=(3, 9, 2)))
+    pts = torch.tensor(rng.normal(size=(3, 40, 2)), requires_grad=True)
+    for temperature in (1e-3, 0.05, 1.0):
+        fast = E.soft_polyline_sq_distance(pts, poly, temperature)
+        ref = _reference_soft_distance(pts, poly[:, None, :-1], poly[:, None, 1:], temperature)
+        torch.testing.assert_close(fast, ref, rtol=1e-9, atol=1e-12)
+        w = torch.tensor(rng.uniform(size=ref.shape))
+        g_fast, = torch.autograd.grad((fast * w).sum(), pts)
+        g_ref, = torch.autograd.grad((ref * w).sum(), pts)
+        torch.testing.assert_close(g_fast, g_ref, rtol=1e-7, atol=1e-10)
+
+
+def test_soft_segments_gradient_matches_autograd():
+    rng = np.random.default_rng(6)
+    a, b = torch.tensor(rng.normal(size=(2, 30, 7, 3))), torch.tensor(rng.normal(size=(2, 30, 7, 3)))
+    b[:, :, 0] = a[:, :, 0]                                       # zero-length segments too
+    valid = torch.tensor(rng.uniform(size=(2, 30, 7)) > 0.3)
+    pts = torch.tensor(rng.normal(size=(2, 30, 3)), requires_grad=True)
+    seg = b - a
+    fast = E._soft_segments_sq_distance(pts, a.movedim(-1, 0).contiguous(), seg.movedim(-1, 0).contiguous(),
+                                        (seg * seg).sum(-1) + E._EPS, 0.05, E._invalid_bias(valid, a.dtype))
+    ref = _reference_soft_distance(pts, a, b, 0.05, valid)
+    torch.testing.assert_close(fast, ref, rtol=1e-9, atol=1e-12)
+    g_fast, = torch.autograd.grad(fast.sum(), pts)
+    g_ref, = torch.autograd.grad(ref.sum(), pts)
+    torch.testing.assert_close(g_fast, g_ref, rtol=1e-7, atol=1e-10)
+
+
+def _reference_penetration(m, ctx):
+    """Every sphere against every object and every other person's sphere, no candidate search."""
+    points, radii = E.body_points(m["joints"])                       # (B, N, H, P, 3)
+    b, n, h, p = points.shape[:4]
+    depth = []
+    for o, spec in enumerate(ctx.objects):
+        local = E.world_to_local(points.reshape(b, n, h * p, 3), m["obj_pose"][:, :, o])
+        depth.append((radii.repeat(h) - E.object_sdf(spec, local)).flatten(1))
+    for i in range(h):
+        for j in range(i + 1, h):
+            gap = E.safe_norm(points[:, :, i, :, None] - points[:, :, j, None])
+            depth.append((radii[:, None] + radii[None] - gap).flatten(1))
+    depth = torch.cat(depth, 1).clamp_min(0)
+    return (depth ** 2).sum(1) / (depth > 0).sum(1).clamp_min(1)
+
+
+@pytest.mark.parametrize("kind", ["box", "table", "canister"])
+def test_penetration_matches_all_pairs(kind):
+    """The candidate search must not lose a penetrating pair: value and gradient equal the
+    all-pairs computation, on crowded scenes with the object among the people."""
+    for seed, apart in enumerate((0.2, 0.35, 0.8)):
+        m, ctx = busy_scene(apart=apart, box_at=(0.3, 0.3, 0.0))
+        ctx.objects = (ObjectSpec(kind),)
+        rng = np.random.default_rng(seed)
+        m["obj_pose"][..., 3:] = torch.tensor(rng.normal(size=(1, N, 1, 4)))   # tilted, unnormalised quaternions
+        m = {k: v.clone().requires_grad_() for k, v in m.items()}
+        fast, ref = E.penetration_energy(m, ctx), _reference_penetration(m, ctx)
+        assert float(ref.detach()) > 0
+        torch.testing.assert_close(fast, ref, rtol=1e-9, atol=1e-12)
+        for g_fast, g_ref in zip(torch.autograd.grad(fast.sum(), [m["joints"], m["obj_pose"]]),
+                                 torch.autograd.grad(ref.sum(), [m["joints"], m["obj_pose"]])):
+            torch.testing.assert_close(g_fast, g_ref, rtol=1e-9, atol=1e-12)
+
+
+def test_penetration_finds_pairs_at_the_edge_of_the_box_test():
+    """Two people collapsed to points a distance d apart: their bounding boxes are d apart, and
+    their largest spheres (r = 0.1) overlap up to d = 0.2, which the frame search must keep."""
+    m, ctx = busy_scene(box_at=(5.0, 0.0, 5.0))
+    d = torch.linspace(0.05, 0.25, N, dtype=torch.float64)
+    joints = torch.zeros(1, N, 2, 22, 3, dtype=torch.float64)
+    joints[:, :, 1, :, 0] = d[:, None]
+    m = dict(m, joints=joints.requires_grad_())
+    fast, ref = E.penetration_energy(m, ctx), _reference_penetration(m, ctx)
+    assert float(ref.detach()) > 0
+    torch.testing.assert_close(fast, ref, rtol=1e-9, atol=1e-12)
+    torch.testing.assert_close(torch.autograd.grad(fast.sum(), joints)[0],
+                               torch.autograd.grad(ref.sum(), joints)[0], rtol=1e-9, atol=1e-12)
+
+
 def test_timing_print():
     """Forward + backward of all energies on one (1, 120, 2, 22, 3) float32 motion in a
     typical scene (people 1.2 m apart, a box beside them): printed, not asserted. Process CPU
