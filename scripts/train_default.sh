@@ -24,7 +24,7 @@ stage() {  # stage NAME STEPS THREADS
 
 stage vqvae 8000 2 & stage encoders 1000 1 & wait
 stage teacher 6500 2 & { stage ctmc 500 1; stage surrogate 300 1; stage potential 400 1; } & wait
-stage student1 4000 2
+stage student1 3000 2
 stage student2 600 2
 sketch2colab bundle --runs runs -o resources/models/default.pt "${ARGS[@]:0:2}" "${ARGS[@]:4}" \
     --command "bash scripts/train_default.sh"
