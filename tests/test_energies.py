@@ -299,8 +299,15 @@ def test_context_constants_follow_the_context():
 
 
 def _reference_soft_distance(points, a, b, temperature, valid=None):
-    """Plain autograd soft distance of points (..., D) to their segments a, b (..., K, D)."""
-    return E.soft_min_mean(E.segment_sq_distance(points[..., None, :], a, b), temperature, valid)
+    """Plain autograd soft distance of points (..., D) to their segments a, b (..., K, D): the
+    mean squared closest-point distance under softmin weights held constant."""
+    seg, rel = b - a, points[..., None, :] - a
+    t = ((rel * seg).sum(-1) / ((seg * seg).sum(-1) + 1e-12)).clamp(0, 1)
+    d2 = ((rel - t[..., None] * seg) ** 2).sum(-1)
+    logits = -d2.detach() / temperature
+    if valid is not None:
+        logits = logits - 1e9 * (~valid).to(logits.dtype)
+    return (torch.softmax(logits, -1) * d2).sum(-1)
 
 
 def test_soft_polyline_gradient_matches_autograd():

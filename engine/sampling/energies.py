@@ -306,40 +306,17 @@ def _sphere_centres_all(joints: Tensor) -> Tensor:
     return torch.cat([joints, mids], -2)
 
 
-def segment_sq_distance(points: Tensor, a: Tensor, b: Tensor) -> Tensor:
-    """Squared distance of points to segments [a, b], all (..., D) broadcastable -> (...).
-    A zero-length segment is its point."""
-    seg = b - a
-    diff = _segment_offset(points, a, seg, (seg * seg).sum(-1) + _EPS)
-    return (diff * diff).sum(-1)
-
-
-def _segment_offset(points: Tensor, a: Tensor, seg: Tensor, seg_sq: Tensor) -> Tensor:
-    """points - their closest point on the segments a + [0, 1] seg, seg_sq = |seg|^2 + eps;
-    all (..., D) broadcastable -> (..., D)."""
-    rel = points - a
-    t = (torch.linalg.vecdot(rel, seg) / seg_sq).clamp(0, 1)
-    return torch.addcmul(rel, t[..., None], seg, value=-1)                  # rel - t seg, one op
-
-
-def soft_min_mean(d2: Tensor, temperature: float, valid: Tensor | None = None) -> Tensor:
-    """Softmin over the last axis of squared distances (..., S) -> (...), valid (..., S) bool.
-
-    The value is the mean of d2 under weights softmax(-d2 / temperature) held constant: so it is
-    >= 0, equals the minimum when one entry is clearly smallest, and its gradient is the
-    log-sum-exp softmin's (a blend of pulls towards each entry), which does not jump where
-    the nearest entry changes."""
-    bias = None if valid is None else _invalid_bias(valid, d2.dtype)
-    return (_softmin_weights(d2.detach(), temperature, bias) * d2).sum(-1)
-
-
 def _invalid_bias(valid: Tensor, dtype: torch.dtype) -> Tensor:
     """Logit offset that removes invalid entries from a softmax: 0 where valid, -1e9 elsewhere."""
     return -1e9 * (~valid).to(dtype)
 
 
 def _softmin_weights(d2: Tensor, temperature: float, bias: Tensor | None = None) -> Tensor:
-    """softmax(-d2 / temperature + bias) over the last axis, without gradient."""
+    """softmax(-d2 / temperature + bias) over the last axis, without gradient.
+
+    The soft distances are the mean of d2 under these weights held constant: >= 0, the minimum
+    when one entry is clearly smallest, and with the log-sum-exp softmin's gradient (a blend of
+    pulls towards each entry), which does not jump where the nearest entry changes."""
     logits = d2.detach() / -temperature
     if bias is not None:
         logits = logits + bias
@@ -352,7 +329,7 @@ def _softmin_weights(d2: Tensor, temperature: float, bias: Tensor | None = None)
 class _SoftDistance(torch.autograd.Function):
     """Attaches its gradient to a soft squared distance computed without autograd.
 
-    For value = sum_i w_i |q - c_i|^2 with the softmin weights w held constant (soft_min_mean)
+    For value = sum_i w_i |q - c_i|^2 with the softmin weights w held constant (_softmin_weights)
     and c_i the closest point of candidate segment i, the gradient in q is
     2 sum_i w_i (q - c_i) = 2 pull: the closest point's own motion along its segment changes
     the distance only to second order (up to the eps in its parameter). Backward is then one
@@ -411,7 +388,7 @@ def _soft_polyline_sq_distance(points: Tensor, poly: SimpleNamespace, temperatur
 
 def soft_polyline_sq_distance(points: Tensor, polyline: Tensor, temperature: float) -> Tensor:
     """Soft squared closest-point distance of points (..., P, D) to a polyline (..., L, D),
-    L >= 2 -> (..., P): the softmin (soft_min_mean) over the polyline's segments.
+    L >= 2 -> (..., P): the softmin (_softmin_weights) over the polyline's segments.
 
     Written with matrix products so that no (P, L, D) tensor is formed (the energies' hot spot);
     coordinates are taken relative to the polyline's first point to keep the expansion exact."""
@@ -420,7 +397,7 @@ def soft_polyline_sq_distance(points: Tensor, polyline: Tensor, temperature: flo
 
 def _soft_segments_sq_distance(points: Tensor, a: Tensor, seg: Tensor, seg_sq: Tensor,
                                temperature: float, bias: Tensor | None = None) -> Tensor:
-    """Soft squared distance (soft_min_mean) of points (..., D) to their own K candidate segments
+    """Soft squared distance (_softmin_weights) of points (..., D) to their own K candidate segments
     a + [0, 1] seg -> (...). The segments come coordinate-first, a and seg (D, ..., K): sums
     over a short last axis are slow on CPU, sums of D slabs are not. seg_sq = |seg|^2 + eps
     (..., K); bias: the softmax's logit offset (..., K), or None."""
