@@ -81,6 +81,10 @@ def _ddp_worker(rank: int, world: int, init_file: str, runs: str):
         torch.distributed.all_gather(gathered, flat)
         if rank == 0:
             torch.save({"same": all(torch.equal(gathered[0], g) for g in gathered)}, Path(runs) / "ddp.pt")
+        # gloo's worker threads can still hold the all_gather's tensors for a moment; if the process
+        # exits then, freeing them at interpreter shutdown aborts it (SIGABRT, ~1 run in 15).
+        # A barrier holds no Python tensors, so the last collective's work is retired harmlessly.
+        torch.distributed.barrier()
     finally:
         torch.distributed.destroy_process_group()
 

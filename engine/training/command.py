@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import torch.distributed as dist
+
 from .checkpoint import CheckpointError
 from .config import CONFIGS
 from .loop import init_distributed_from_env, train
@@ -39,10 +41,13 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
     dataset = StoryboardWindows(files, DatasetConfig(seed=cfg.seed))
     if len(dataset) == 0:
         raise TrainError("the clip folders hold no clip long enough for a training window")
-    init_distributed_from_env()
+    joined = init_distributed_from_env()
     try:
         results = train(stage, cfg, dataset, runs=runs, resume=resume)
     except (StageUnavailable, CheckpointError) as e:
         raise TrainError(str(e)) from None
+    finally:
+        if joined:
+            dist.destroy_process_group()
     print(json.dumps(results, indent=1))
     return results

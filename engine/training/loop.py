@@ -193,9 +193,10 @@ def train(stage: str, cfg: TrainConfig, dataset: Dataset, runs: str | Path = "ru
 
 
 def init_distributed_from_env() -> bool:
-    """Join the process group torchrun describes (gloo on CPU, nccl on GPU); False when not under torchrun."""
+    """Join the process group torchrun describes (gloo on CPU, nccl on GPU). True when this call
+    joined one (the caller then destroys it); False when not under torchrun or already joined."""
     if "WORLD_SIZE" not in os.environ or int(os.environ["WORLD_SIZE"]) < 2 or dist.is_initialized():
-        return dist.is_initialized()
+        return False
     if torch.cuda.is_available():
         torch.cuda.set_device(int(os.environ.get("LOCAL_RANK", 0)))
     dist.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
