@@ -140,11 +140,20 @@ class _Run:
         self.enabled = TRAJECTORY_ONLY if cfg.trajectory_only else set(ENERGIES)
         self.weights = EnergyWeights()
         self.occupancy: torch.Tensor | None = None
+        self._decoded: tuple[torch.Tensor | None, dict] = (None, {})
         self.guided_velocity = ClassifierFreeGuidance(self._student_field, cfg.cfg)
 
     # ---- shared pieces ---------------------------------------------------------------------
     def _decode(self, z: torch.Tensor) -> dict[str, torch.Tensor]:
-        return self.bundle.vqvae.decode(z)
+        """VQ-VAE decode of z, remembered for the same tensor: planning, the first guidance step
+        and the result often decode the latent the step before them did (the sampler never
+        changes a latent in place). One read and one write of the pair: a StepEvent's decode may
+        run on another thread."""
+        last, motion = self._decoded
+        if z is not last:
+            motion = self.bundle.vqvae.decode(z)
+            self._decoded = (z, motion)
+        return motion
 
     def _storyboard_view(self, motion: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """The decoded slots that the storyboard uses (its agents, its objects)."""
@@ -182,7 +191,7 @@ class _Run:
         energy, grad = z0.new_zeros(z0.shape[0]), torch.zeros_like(z0)
         with torch.enable_grad():
             if cfg.use_energy:
-                zg = z0.detach().requires_grad_(self.surrogate is None)
+                zg = z0 if self.surrogate is not None else z0.detach().requires_grad_(True)
                 motion = self._decode(zg)
                 if self.surrogate is not None:   # stop at the motion, route through B_rho
                     motion = {k: v.detach().requires_grad_(True) for k, v in motion.items()}
@@ -265,9 +274,11 @@ class _Run:
         return self.bundle.student.velocity(z, t, cond, entity_pos, occupancy)
 
     def _velocity(self, z: torch.Tensor, t: float, entity_pos: torch.Tensor | None) -> torch.Tensor:
-        """CFG-guided student velocity; one network evaluation (cond and uncond run as one batch)."""
+        """CFG-guided student velocity; one network evaluation (cond and uncond run as one batch).
+        Inference mode: ~10% faster than no_grad, and its result only ever enters arithmetic."""
         self.evals += 1
-        return self.guided_velocity(z, torch.full((z.shape[0],), t), self.cond, entity_pos)
+        with torch.inference_mode():
+            return self.guided_velocity(z, torch.full((z.shape[0],), t), self.cond, entity_pos)
 
     def student(self) -> Generator[StepEvent, None, GenerationResult]:
         cfg, b = self.cfg, self.bundle
