@@ -138,7 +138,7 @@ class Viewport(QWidget):
         scene = scene_from_clip(self._clip, self.frame, self._storyboard, self.options)
         if self._clip is not None:
             scene.people = self._clip.joints.reshape(-1, 22, 3)  # the whole motion, not one frame
-        self.camera.frame_all(scene.bounds(), self.width() / max(1, self.height()))
+        self.camera.frame_all(scene.points(), self.width() / max(1, self.height()))
         self.update_view()
 
     def update_view(self) -> None:

@@ -79,6 +79,19 @@ def test_overlays_and_default_framing(renderer):
     assert masks["red"].sum() > 100 and masks["blue"].sum() > 100
 
 
+@pytest.mark.parametrize("yaw, pitch, aspect", [(35.0, 18.0, 4 / 3), (120.0, 40.0, 16 / 9), (0.0, 5.0, 0.75)])
+def test_frame_all_fits_the_points_tightly(yaw, pitch, aspect):
+    """Every point lands inside the picture, and the farthest out nearly on its edge."""
+    rng = np.random.default_rng(int(yaw))
+    points = rng.uniform([-3.0, 0.0, -1.0], [2.0, 1.8, 0.5], size=(200, 3))
+    camera = OrbitCamera(yaw=yaw, pitch=pitch)
+    camera.frame_all(points, aspect, pad=0.0, margin=1.0)
+    clip = np.c_[points, np.ones(len(points))] @ (camera.projection_matrix(aspect) @ camera.view_matrix()).T
+    ndc = np.abs(clip[:, :2] / clip[:, 3:])
+    assert (clip[:, 3] > 0).all() and ndc.max() <= 1.0 + 1e-6
+    assert ndc.max() > 0.98
+
+
 def test_a_ghost_is_one_translucent_layer_over_the_scene(renderer):
     """A keyframe ghost of alpha a shows a * (the same pose drawn solid) + (1 - a) * what is
     behind it: one layer, however many of its capsules and spheres overlap."""

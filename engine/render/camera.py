@@ -65,11 +65,17 @@ class OrbitCamera:
         """Multiply the distance to the target (factor < 1 moves closer)."""
         self.distance = min(MAX_DISTANCE, max(MIN_DISTANCE, self.distance * factor))
 
-    def frame_all(self, bounds: np.ndarray, aspect: float = 16 / 9) -> None:
-        """Aim at and fit a world box, bounds (2, 3) = min corner, max corner, keeping the angles."""
-        lo, hi = np.asarray(bounds, float)
-        self.target = tuple((lo + hi) / 2)
-        radius = max(0.25, float(np.linalg.norm(hi - lo)) / 2)
-        half_v = math.radians(self.fov) / 2
-        half = min(half_v, math.atan(math.tan(half_v) * aspect))
-        self.distance = min(MAX_DISTANCE, 1.05 * radius / math.sin(half))
+    def frame_all(self, points: np.ndarray, aspect: float = 16 / 9, pad: float = 0.15,
+                  margin: float = 1.05) -> None:
+        """Aim at and fit world points (M, 3), keeping the angles: the target is the centre of
+        their box, the distance the least at which every point, `pad` metres around it (joints
+        are inside limbs) and `margin` times its offset from the target, is in view. A bounding
+        sphere would leave half the picture empty."""
+        pts = np.asarray(points, float).reshape(-1, 3)
+        centre = (pts.min(0) + pts.max(0)) / 2
+        right, up, back = ((pts - centre) @ self.basis().T).T
+        tan_v = math.tan(math.radians(self.fov) / 2)
+        spread = np.maximum((np.abs(right) + pad) / (tan_v * aspect), (np.abs(up) + pad) / tan_v)
+        need = float(np.max(back + margin * spread))
+        self.target = tuple(centre)
+        self.distance = min(MAX_DISTANCE, max(MIN_DISTANCE, need, 0.5 / tan_v))  # at least 1 m of view height

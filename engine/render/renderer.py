@@ -230,7 +230,7 @@ class SceneRenderer:
         ctx = self.ctx
         if camera is None:
             camera = OrbitCamera()
-            camera.frame_all(scene.bounds(), self.width / self.height)
+            camera.frame_all(scene.points(), self.width / self.height)
         view = camera.view_matrix()
         proj = Y_FLIP @ camera.projection_matrix(self.width / self.height)
         view_proj = proj @ view

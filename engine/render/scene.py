@@ -42,18 +42,22 @@ class SceneState:
     def color(self, person: int) -> str:
         return self.colors[person % len(self.colors)]
 
-    def bounds(self) -> np.ndarray:
-        """(2, 3) min and max corner of people, objects, ghosts and paths; a unit box if empty."""
+    def points(self) -> np.ndarray:
+        """(M, 3) what there is to see: joints of people and ghosts, path points, and the corners
+        of a box around each object; a unit box's corners if the scene is empty."""
         pts = [np.asarray(self.people, float).reshape(-1, 3)]
         pts += [np.asarray(g, float).reshape(-1, 3) for g in self.ghosts]
         pts += [np.asarray(p.points, float) for p in self.target_paths + self.generated_paths]
         for o in self.objects:
             half = np.asarray(o.spec.size) / 2
-            pts.append(np.stack([o.pose[:3] - half * [1, 0, 1], o.pose[:3] + half * [1, 2, 1]]))
-        pts = np.concatenate(pts) if pts else np.zeros((0, 3))
-        if len(pts) == 0:
-            return np.array([[-0.5, 0.0, -0.5], [0.5, 1.0, 0.5]])
-        return np.stack([pts.min(0), pts.max(0)])
+            pts.append(_corners(o.pose[:3] - half * [1, 0, 1], o.pose[:3] + half * [1, 2, 1]))
+        pts = np.concatenate(pts)
+        return pts if len(pts) else _corners(np.array([-0.5, 0.0, -0.5]), np.array([0.5, 1.0, 0.5]))
+
+
+def _corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(8, 3) corners of the box lo..hi."""
+    return np.stack(np.meshgrid(*zip(lo, hi), indexing="ij"), -1).reshape(8, 3)
 
 
 @dataclass

@@ -20,7 +20,7 @@ def clip_camera(clip: MotionClip, storyboard: Storyboard | None, aspect: float) 
     everything = scene_from_clip(clip, 0, storyboard)
     everything.people = clip.joints.reshape(-1, 22, 3)
     camera = OrbitCamera()
-    camera.frame_all(everything.bounds(), aspect)
+    camera.frame_all(everything.points(), aspect)
     return camera
 
 
