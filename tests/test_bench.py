@@ -4,18 +4,22 @@ import json
 import math
 from dataclasses import replace
 
+import numpy as np
 import pytest
 import torch
 
 from engine.bench.command import command_line
+from engine.bench.diagnostics import nudged
 from engine.bench.protocol import ProtocolConfig, build_protocols
 from engine.bench.report import render, write
 from engine.bench.runner import OURS, TEACHER_DDIM, RunnerConfig
 from engine.bench.speed import SpeedConfig
 from engine.bench.suite import BenchConfig, run_bench
 from engine.bench.targets import PAPER_TARGETS, check_targets, relative_change
+from engine.demo import EXAMPLES
 from engine.models.bundle import ModelConfig, untrained_bundle
 from engine.models.teacher import VPSchedule
+from engine.storyboard import Storyboard
 from engine.synth import synthesize
 
 
@@ -69,6 +73,7 @@ def test_markdown_has_every_table_and_the_command(tiny_run):
         assert heading in md
     assert "| Ours | 2 |" in md and "| COLLAGE Teacher (DDIM-50) | 2 |" in md
     assert "Wall time (s) vs clip length" in md and "2 people + 1 object" in md
+    assert "Stroke-nudge stability" in md and "| mean change | max change |" in md
     for name in ("guidance_sweep", "contact_reliability", "flow_curvature", "energy_alignment"):
         assert (root / "figures" / f"{name}.png").stat().st_size > 1000
 
@@ -89,6 +94,8 @@ def test_json_figures_are_finite(tiny_run):
     assert all(math.isfinite(speed[m]["wall_s"]) and speed[m]["wall_s"] > 0 for m in speed)
     assert set(data["speed"]["length"]["ours"]) == {"2", "6"}
     assert data["diagnostics"]["sweep_x"] == "K2D" and len(data["diagnostics"]["sweep"]) == 2
+    (stability,) = data["diagnostics"]["stability"].values()
+    assert stability["n"] == 1 and 0 <= stability["mean"] <= stability["max"] < 10
     checks = {c["metric"]: c for c in data["targets"]["vs_ddim"]["checks"]}
     assert checks["FID"]["relative"] is None and checks["K2D"]["relative"] is not None
     assert data["targets"]["vs_ddpm"]["n"] == 0
@@ -114,3 +121,12 @@ def test_render_marks_missing_figures_with_a_dash(tiny_run):
     md = render(results, "sketch2colab bench")
     row = next(line for line in md.splitlines() if line.startswith("| Ours | 2 |"))
     assert row.split("|")[3].strip() == "-"              # FID without an evaluator
+
+
+def test_a_nudge_moves_one_stroke_point_and_nothing_else():
+    board = Storyboard.load(EXAMPLES / "box_handoff.json")
+    moved = nudged(board, 0.005)
+    first, before = moved.trajectories[0].points, board.trajectories[0].points
+    assert np.count_nonzero(first != before) == 1 and (first - before).sum() == pytest.approx(0.005)
+    assert all(a is b for a, b in zip(moved.trajectories[1:], board.trajectories[1:]))
+    assert nudged(replace(board, trajectories=[]), 0.005) is None

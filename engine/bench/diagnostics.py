@@ -12,6 +12,9 @@
   cos(z_{k+1} - z_k, -grad), 1 when the step goes straight downhill in energy.
 - Contact-timing reliability: predicted per-hand contact probability (clip.contact) binned in
   tenths against the frequency of the synthesizer's labels in each bin.
+- Stroke-nudge stability: the same seed on the storyboard and on a copy whose first trajectory
+  stroke has its middle point moved a few millimetres; how far the joints of the two results
+  are apart. An artist who nudges a stroke expects the motion to move a little, not a new take.
 """
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
+from ..clip import MotionClip
 from ..storyboard import Storyboard
 from .runner import SampleResult
 
@@ -93,3 +97,20 @@ def reliability(samples: list[SampleResult], references, bins: int = 10) -> dict
     return {"confidence": (np.bincount(which, p, bins)[keep] / count[keep]).tolist(),
             "frequency": (np.bincount(which, y, bins)[keep] / count[keep]).tolist(),
             "count": count[keep].tolist()}
+
+
+def nudged(storyboard: Storyboard, metres: float) -> Storyboard | None:
+    """A copy with the middle point of the first trajectory stroke moved `metres` along the
+    sketch plane's x; None when the storyboard has no trajectory."""
+    if not storyboard.trajectories:
+        return None
+    first = storyboard.trajectories[0]
+    points = first.points.copy()
+    points[len(points) // 2, 0] += metres
+    return replace(storyboard, trajectories=[replace(first, points=points), *storyboard.trajectories[1:]])
+
+
+def motion_change(a: MotionClip, b: MotionClip) -> tuple[float, float]:
+    """Mean and largest joint displacement (m) between two clips of one storyboard."""
+    distance = np.linalg.norm(a.joints - b.joints, axis=-1)
+    return float(distance.mean()), float(distance.max())

@@ -161,9 +161,15 @@ def _diagnostics_section(diag: dict, relative_to: Path | None) -> str:
            "latents (the starting noise is not streamed, so the first point is step 2).",
            "- Energy-flow alignment: cos(z_{k+1} - z_k, -grad E) with grad E recomputed by autograd through "
            "the decoder at the straight-line clean estimate z_k - t_k v_k (all energy terms, without the "
-           "sampler's CTMC gating and lifted 3D proxies); the sampler does not stream its own gradients.", ""]
+           "sampler's CTMC gating and lifted 3D proxies); the sampler does not stream its own gradients.",
+           f"- Stroke-nudge stability: the middle point of the first trajectory stroke moved "
+           f"{1000 * diag.get('nudge_m', 0):g} mm, same seed; joint displacement between the two results (m), "
+           "mean over frames, joints and storyboards, and the largest.", ""]
     out.append(table(["cfg", diag["sweep_x"], "ContactF1"],
                      [[fmt(p["cfg"], 1), fmt(p.get(diag["sweep_x"])), fmt(p.get("ContactF1"))] for p in diag["sweep"]]))
+    if diag.get("stability"):
+        out += ["", table(["Method", "n", "mean change", "max change"],
+                          [[label, str(v["n"]), fmt(v["mean"]), fmt(v["max"])] for label, v in diag["stability"].items()])]
     for name, path in diag.get("figures", {}).items():
         shown = os.path.relpath(path, relative_to) if relative_to is not None else path
         out += ["", f"![{name}]({shown})"]

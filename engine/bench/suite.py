@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from . import diagnostics, plots
@@ -42,6 +43,7 @@ class BenchConfig:
     sweep_items: int = 6
     trace_methods: tuple = (OURS, ABLATIONS[0], ABLATIONS[1])     # Ours, w/o Energy, w/o CTMC
     trace_items: int = 4
+    nudge_m: float = 0.005                                         # stroke-nudge stability
     speed_scene_seed: int = 7                                      # a reserved test seed (protocol.py)
     retrieval_clips: int = 60                                      # RetrievAdapt's library size
 
@@ -168,17 +170,24 @@ def _diagnostics(bundle, config: BenchConfig, protocol, samples, evaluator, inde
         log(f"sweep cfg {w:g}: {x_key} {figures.get(x_key)} contact F1 {figures.get('ContactF1')}")
     curves = {m: diagnostics.reliability([s for s in samples if s.method == m], refs)
               for m in (OURS.key, TEACHER_DDIM.key)}
-    curvature, alignment = {}, {}
+    curvature, alignment, stability = {}, {}, {}
     for m in config.trace_methods:
-        curv, align = [], []
+        curv, align, change = [], [], []
         for item in items[:config.trace_items]:
-            trace = generate(bundle, m, item.storyboard, config.runner.seed, trace=True).trace
-            curv.append(diagnostics.flow_curvature(trace))
-            align.append(diagnostics.energy_alignment(bundle, item.storyboard, trace))
+            run = generate(bundle, m, item.storyboard, config.runner.seed, trace=True)
+            curv.append(diagnostics.flow_curvature(run.trace))
+            align.append(diagnostics.energy_alignment(bundle, item.storyboard, run.trace))
+            moved = diagnostics.nudged(item.storyboard, config.nudge_m)
+            if moved is not None:
+                change.append(diagnostics.motion_change(
+                    run.clips[0], generate(bundle, m, moved, config.runner.seed).clips[0]))
         curvature[m.label], alignment[m.label] = diagnostics.mean_series(curv), diagnostics.mean_series(align)
+        if change:
+            stability[m.label] = {"n": len(change), "mean": float(np.mean([c[0] for c in change])),
+                                  "max": float(np.max([c[1] for c in change]))}
         log(f"traced {m.label}")
     out = {"sweep_x": x_key, "sweep": sweep, "reliability": curves, "curvature": curvature,
-           "alignment": alignment, "figures": {}}
+           "alignment": alignment, "stability": stability, "nudge_m": config.nudge_m, "figures": {}}
     if figures_dir is not None:
         figures_dir.mkdir(parents=True, exist_ok=True)
         labels = {OURS.key: OURS.label, TEACHER_DDIM.key: TEACHER_DDIM.label}

@@ -68,6 +68,7 @@ class SamplerConfig:
                                     # z0_hat almost regardless of z, so early guidance is mostly lost)
     guidance_alpha: float = 1.0     # damping of the Polyak step (1: the full linearised step)
     guidance_max_rms: float = 0.25  # cap on one step's RMS change, latent units
+    guidance_max_rate: float = 5.0  # cap on the Polyak rate E / |g|^2 during the ODE (None: none)
     latent_weight: float = 0.05     # eta_lat, weight of E_lat against the raw energies
     final_refine_steps: int = 4     # extra energy steps on the final latent (physics stage)
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
@@ -167,18 +168,25 @@ class _Run:
         self.occupancy = plan.occupancy
         self.energy_ctx.occupancy = plan.occupancy
 
-    def _guide(self, z0: torch.Tensor, t: float, steps: int) -> tuple[torch.Tensor, dict[str, float]]:
+    def _guide(self, z0: torch.Tensor, t: float, steps: int,
+               max_rate: float | None = None) -> tuple[torch.Tensor, dict[str, float]]:
         """`steps` Polyak steps of the total energy on the clean latent z0 (K, T, V, d).
 
         A Polyak step moves along the gradient g by E / |g|^2, the length that would zero the
         energy if it were linear there; damped by `guidance_alpha` and capped at an RMS of
         `guidance_max_rms` latent units, so a far-off keyframe cannot throw the latent off the
-        data manifold and a satisfied storyboard leaves it alone."""
+        data manifold and a satisfied storyboard leaves it alone. The energy never reaches 0
+        (sketches disagree with physics a little), so near its floor E / |g|^2 grows without
+        bound and the steps overshoot back and forth: `max_rate` caps it, or a micrometre
+        change to a stroke changes the motion by decimetres."""
         cfg, values = self.cfg, {}
         for _ in range(steps):
             energy, grad = self._energy_and_gradient(z0, t, values)
             sq = grad.flatten(1).pow(2).sum(1).clamp_min(1e-12)
-            step = (cfg.guidance_alpha * energy / sq)[:, None, None, None] * grad
+            rate = cfg.guidance_alpha * energy / sq
+            if max_rate is not None:
+                rate = rate.clamp(max=max_rate)
+            step = rate[:, None, None, None] * grad
             rms = step.flatten(1).pow(2).mean(1).sqrt().clamp_min(1e-12)
             z0 = z0 - step * (cfg.guidance_max_rms / rms).clamp(max=1.0)[:, None, None, None]
         return z0, values
@@ -300,7 +308,7 @@ class _Run:
                 self._plan(z0, self._decode(z0))
             energies = {}
             if (cfg.use_energy or cfg.use_latent) and t_next <= cfg.guidance_start:
-                z0, energies = self._guide(z0, t_next, cfg.guidance_steps)
+                z0, energies = self._guide(z0, t_next, cfg.guidance_steps, cfg.guidance_max_rate)
             z = (1 - t_next) * z0 + t_next * noise if t_next > 0 else z0
             entity_pos = b.vqvae.decode_lowres(z0)
             yield self._event(i, cfg.steps, t_next, z, z0, energies)
