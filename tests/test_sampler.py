@@ -71,12 +71,15 @@ def test_variations_are_one_batch_of_different_samples(bundle, storyboard):
 
 
 def test_energy_guidance_pulls_motion_towards_the_sketch(bundle, storyboard):
-    """Even an untrained prior must end closer to the keyposes and paths when guided (4 steps,
-    two of them guided at the capped Polyak rate: 5-10% closer; uncapped, ~20%)."""
+    """Even an untrained prior must end closer to the keyposes and paths when guided; a capped
+    Polyak rate pulls less, but still pulls."""
     free = drain(sample(bundle, storyboard, SamplerConfig(steps=4, use_energy=False, use_latent=False, finish=False)))[1]
     guided = drain(sample(bundle, storyboard, SamplerConfig(steps=4, finish=False)))[1]
     before, after = adherence(free.clips[0], storyboard), adherence(guided.clips[0], storyboard)
-    assert after["K2D"] < 0.95 * before["K2D"] and after["T2D"] < 0.95 * before["T2D"]
+    assert after["K2D"] < 0.9 * before["K2D"] and after["T2D"] < 0.9 * before["T2D"]
+    capped = drain(sample(bundle, storyboard, SamplerConfig(steps=4, finish=False, guidance_max_rate=5.0)))[1]
+    between = adherence(capped.clips[0], storyboard)
+    assert after["K2D"] < between["K2D"] < before["K2D"] and after["T2D"] < between["T2D"] < before["T2D"]
 
 
 def test_the_finished_result_lands_on_the_keyposes_with_a_rigid_skeleton(bundle, storyboard):
