@@ -20,6 +20,7 @@ class GenerationSettings:
     cfg: float = 1.6
     use_energy: bool = True
     use_ctmc: bool = True
+    steady: bool = False            # damped guidance (SamplerConfig.guidance_max_rate)
     variations: int = 1
 
 
@@ -35,8 +36,9 @@ def _bundle():
 def start_generation(storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
     """Stream one generation. Nothing runs until the first next(), so the model loads on the
     worker thread, never on the GUI thread; closing the generator cancels between steps."""
-    from engine.sampling.sampler import SamplerConfig, sample
+    from engine.sampling.sampler import STEADY_GUIDANCE_RATE, SamplerConfig, sample
     config = SamplerConfig(steps=settings.steps, seed=settings.seed, cfg=settings.cfg,
                            use_energy=settings.use_energy, use_ctmc=settings.use_ctmc,
+                           guidance_max_rate=STEADY_GUIDANCE_RATE if settings.steady else None,
                            variations=settings.variations)
     return (yield from sample(_bundle(), storyboard, config))

@@ -75,6 +75,9 @@ class PropertiesPanel(QWidget):
         self.cfg = self._spin(0.0, 5.0, 0.1, 2)
         self.use_energy = QCheckBox("Energies")
         self.use_ctmc = QCheckBox("CTMC phases")
+        self.steady = QCheckBox("Steady")
+        self.steady.setToolTip("Damped guidance: a small stroke edit changes the motion a little instead of "
+                               "giving a new take. Feet skate somewhat more.")
         self.variations = QSpinBox()
         self.variations.setRange(1, 8)
         self.variation = QComboBox()
@@ -84,6 +87,7 @@ class PropertiesPanel(QWidget):
         toggles = QHBoxLayout()
         toggles.addWidget(self.use_energy)
         toggles.addWidget(self.use_ctmc)
+        toggles.addWidget(self.steady)
         form.addRow(toggles)
         form.addRow("Variations", self.variations)
         form.addRow("Show", self.variation)
@@ -101,7 +105,7 @@ class PropertiesPanel(QWidget):
         self.contacts.currentRowChanged.connect(lambda row: self.delete_contact.setEnabled(row >= 0))
         for widget in (self.seed, self.steps, self.cfg, self.variations):
             widget.valueChanged.connect(self._apply_settings)
-        for box in (self.use_energy, self.use_ctmc):
+        for box in (self.use_energy, self.use_ctmc, self.steady):
             box.toggled.connect(self._apply_settings)
         self.variation.activated.connect(document.choose_variation)
 
@@ -124,7 +128,8 @@ class PropertiesPanel(QWidget):
     def refresh(self) -> None:
         doc, sb, sel = self._doc, self._doc.storyboard, self._doc.selection
         widgets = [self.agent, self.joint, self.object, self.object_type, *self.size, self.contacts,
-                   self.seed, self.steps, self.cfg, self.use_energy, self.use_ctmc, self.variations, self.variation]
+                   self.seed, self.steps, self.cfg, self.use_energy, self.use_ctmc, self.steady, self.variations,
+                   self.variation]
         for w in widgets:
             w.blockSignals(True)
         self.agent.clear()
@@ -154,6 +159,7 @@ class PropertiesPanel(QWidget):
         self.cfg.setValue(s.cfg)
         self.use_energy.setChecked(s.use_energy)
         self.use_ctmc.setChecked(s.use_ctmc)
+        self.steady.setChecked(s.steady)
         self.variations.setValue(s.variations)
         self.variation.clear()
         self.variation.addItems([f"Variation {i + 1} of {len(doc.clips)}" for i in range(len(doc.clips))])
@@ -178,7 +184,8 @@ class PropertiesPanel(QWidget):
     def _apply_settings(self, *_):
         self._doc.set_settings(replace(self._doc.settings, seed=self.seed.value(), steps=self.steps.value(),
                                        cfg=round(self.cfg.value(), 3), use_energy=self.use_energy.isChecked(),
-                                       use_ctmc=self.use_ctmc.isChecked(), variations=self.variations.value()))
+                                       use_ctmc=self.use_ctmc.isChecked(), steady=self.steady.isChecked(),
+                                       variations=self.variations.value()))
 
     def _delete_contact(self):
         row = self.contacts.currentRow()

@@ -92,13 +92,13 @@ def cmd_bundle(args) -> int:
 
 
 def _sampler_config(args):
-    from .sampling.sampler import SamplerConfig
+    from .sampling.sampler import STEADY_GUIDANCE_RATE, SamplerConfig
     if args.steps < 1 or args.variations < 1:
         raise UserError("--steps and --variations must be at least 1")
     return SamplerConfig(steps=args.steps, seed=args.seed, cfg=args.cfg,
                          method="student" if args.method == "retrieval" else args.method,
                          variations=args.variations, use_energy=not args.no_energy, use_ctmc=not args.no_ctmc,
-                         finish=not args.no_finish)
+                         finish=not args.no_finish, guidance_max_rate=STEADY_GUIDANCE_RATE if args.steady else None)
 
 
 def cmd_generate(args) -> int:
@@ -206,6 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-ctmc", action="store_true", help="no CTMC phase planning (ablation)")
     s.add_argument("--no-finish", action="store_true",
                    help="keep the sampler's raw decode (no finishing pass: keyposes, paths, contacts, feet)")
+    s.add_argument("--steady", action="store_true",
+                   help="damped guidance: a small stroke edit changes the motion a little, not into a new "
+                        "take (feet skate more)")
     s.add_argument("--variations", type=int, default=1, help="K variations in one batch")
     add_export_arguments(s)  # --npz, --bvh-dir, --object-csv, --glb of the first variation
     s.add_argument("--checkpoint", metavar="BUNDLE.pt", help="model bundle (default: the shipped one)")

@@ -21,3 +21,10 @@ def test_export_the_storyboard_cannot_have_is_a_clear_error(tmp_path, capsys):
                  "--object-csv", str(tmp_path / "o.csv")])
     err = capsys.readouterr().err
     assert code == 2 and "no object" in err and "Traceback" not in err
+
+
+def test_steady_generation_runs(tmp_path, capsys):
+    code = main(["generate", "resources/examples/handshake.json", "-o", str(tmp_path / "h.npz"), "--steps", "3",
+                 "--steady"])
+    assert code == 0 and (tmp_path / "h.npz").exists()
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["network_evals"] == 6

@@ -1,5 +1,6 @@
 """The whole window: files, recovery, shortcuts and streamed generation with a fake sampler."""
 import numpy as np
+import pytest
 import torch  # noqa: F401  as main() does: loaded before the window, so no generation pays for it
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer
 
@@ -151,3 +152,25 @@ def test_no_display_message(monkeypatch, capsys):
     assert main([]) == 2
     assert "sketch2colab demo" in capsys.readouterr().err
     assert "sketch2colab demo" in NO_DISPLAY
+
+
+def test_the_steady_checkbox_reaches_the_sampler(make_window, monkeypatch):
+    import app.generation
+    import engine.sampling.sampler as sampler
+    window = make_window()
+    window.properties.steady.click()
+    assert window.doc.settings.steady
+    seen = []
+
+    def record(bundle, storyboard, config):
+        seen.append(config)
+        return None
+        yield
+
+    monkeypatch.setattr(app.generation, "_bundle", lambda: None)
+    monkeypatch.setattr(sampler, "sample", record)
+    for steady in (True, False):
+        stream = app.generation.start_generation(sample_storyboard(), window.doc.settings.__class__(steady=steady))
+        with pytest.raises(StopIteration):
+            next(stream)
+    assert [c.guidance_max_rate for c in seen] == [sampler.STEADY_GUIDANCE_RATE, None]
