@@ -45,7 +45,8 @@ def tiny_run(tmp_path_factory):
         runner=RunnerConfig(variations=2, diversity_items=1, ddpm_items=0),
         speed=SpeedConfig(repeats=1, ddpm_repeats=1, lengths_s=(2.0, 6.0)),
         methods=methods, noise_methods=methods[:1], speed_methods=methods, scaling_methods=methods[:1],
-        sweep_cfg=(1.0, 2.0), sweep_items=1, trace_methods=methods[:1], trace_items=1)
+        sweep_cfg=(1.0, 2.0), sweep_items=1, trace_methods=methods[:1], trace_items=1,
+        stability_methods=methods[:1], stability_items=1)
     results = run_bench(bundle, config, None, root / "figures", log=lambda m: None)
     md, js = root / "BENCHMARKS.md", root / "bench.json"
     write(results, command_line(True, str(md), str(js), None), md, js)
@@ -73,7 +74,7 @@ def test_markdown_has_every_table_and_the_command(tiny_run):
         assert heading in md
     assert "| Ours | 2 |" in md and "| COLLAGE Teacher (DDIM-50) | 2 |" in md
     assert "Wall time (s) vs clip length" in md and "2 people + 1 object" in md
-    assert "Stroke-nudge stability" in md and "| mean change | max change |" in md
+    assert "Stroke-nudge stability" in md and "| mean change | median change | max change |" in md
     for name in ("guidance_sweep", "contact_reliability", "flow_curvature", "energy_alignment"):
         assert (root / "figures" / f"{name}.png").stat().st_size > 1000
 
@@ -94,8 +95,9 @@ def test_json_figures_are_finite(tiny_run):
     assert all(math.isfinite(speed[m]["wall_s"]) and speed[m]["wall_s"] > 0 for m in speed)
     assert set(data["speed"]["length"]["ours"]) == {"2", "6"}
     assert data["diagnostics"]["sweep_x"] == "K2D" and len(data["diagnostics"]["sweep"]) == 2
-    (stability,) = data["diagnostics"]["stability"].values()
-    assert stability["n"] == 1 and 0 <= stability["mean"] <= stability["max"] < 10
+    stability = data["diagnostics"]["stability"]
+    assert set(stability) == {"Ours"}
+    assert stability["Ours"]["n"] == 1 and 0 <= stability["Ours"]["mean"] <= stability["Ours"]["max"] < 10
     checks = {c["metric"]: c for c in data["targets"]["vs_ddim"]["checks"]}
     assert checks["FID"]["relative"] is None and checks["K2D"]["relative"] is not None
     assert data["targets"]["vs_ddpm"]["n"] == 0

@@ -164,12 +164,14 @@ def _diagnostics_section(diag: dict, relative_to: Path | None) -> str:
            "sampler's CTMC gating and lifted 3D proxies); the sampler does not stream its own gradients.",
            f"- Stroke-nudge stability: the middle point of the first trajectory stroke moved "
            f"{1000 * diag.get('nudge_m', 0):g} mm, same seed; joint displacement between the two results (m), "
-           "mean over frames, joints and storyboards, and the largest.", ""]
+           "mean over frames and joints per storyboard, then the mean and median over storyboards, and the "
+           "largest. Steady: the damped guidance of the app's Steady checkbox (generate --steady).", ""]
     out.append(table(["cfg", diag["sweep_x"], "ContactF1"],
                      [[fmt(p["cfg"], 1), fmt(p.get(diag["sweep_x"])), fmt(p.get("ContactF1"))] for p in diag["sweep"]]))
     if diag.get("stability"):
-        out += ["", table(["Method", "n", "mean change", "max change"],
-                          [[label, str(v["n"]), fmt(v["mean"]), fmt(v["max"])] for label, v in diag["stability"].items()])]
+        out += ["", table(["Method", "n", "mean change", "median change", "max change"],
+                          [[label, str(v["n"]), fmt(v["mean"]), fmt(v["median"]), fmt(v["max"])]
+                           for label, v in diag["stability"].items()])]
     for name, path in diag.get("figures", {}).items():
         shown = os.path.relpath(path, relative_to) if relative_to is not None else path
         out += ["", f"![{name}]({shown})"]

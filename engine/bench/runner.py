@@ -16,7 +16,7 @@ from ..baselines.retrieval import RetrievalIndex, sample_retrieval
 from ..clip import MotionClip
 from ..generate import run_generation
 from ..metrics import adherence, brier_score, contact_f1, diversity, expected_calibration_error
-from ..sampling.sampler import SamplerConfig, sample
+from ..sampling.sampler import STEADY_GUIDANCE_RATE, SamplerConfig, sample
 from ..storyboard import Storyboard
 from .protocol import BenchItem, Protocol
 
@@ -35,6 +35,7 @@ TEACHER_DDPM = Method("teacher_ddpm", "COLLAGE Teacher (DDPM-1000)", SamplerConf
 TEACHER_DDIM = Method("teacher_ddim", "COLLAGE Teacher (DDIM-50)",
                       SamplerConfig(method="teacher-ddim", steps=50, finish=False))
 RETRIEV_ADAPT = Method("retrievadapt", "RetrievAdapt", None)
+STEADY = Method("ours_steady", "Ours, steady", SamplerConfig(steps=30, guidance_max_rate=STEADY_GUIDANCE_RATE))
 ABLATIONS = (
     Method("wo_finishing", "w/o finishing", SamplerConfig(steps=30, finish=False)),
     Method("wo_energy", "w/o Energy", SamplerConfig(steps=30, use_energy=False)),

@@ -20,8 +20,8 @@ import torch
 from . import diagnostics, plots
 from ..baselines.retrieval import default_index
 from .protocol import REPO_ROOT, ProtocolConfig, build_protocols
-from .runner import (ABLATIONS, ALL_METHODS, OURS, RETRIEV_ADAPT, TEACHER_DDIM, TEACHER_DDPM, RunnerConfig,
-                     generate, run_protocol)
+from .runner import (ABLATIONS, ALL_METHODS, OURS, RETRIEV_ADAPT, STEADY, TEACHER_DDIM, TEACHER_DDPM,
+                     RunnerConfig, generate, run_protocol)
 from .scores import by_key, by_method, paired
 from .speed import SpeedConfig, speed_table
 from .targets import check_targets
@@ -41,9 +41,11 @@ class BenchConfig:
     scaling_methods: tuple = (OURS, TEACHER_DDIM, TEACHER_DDPM, RETRIEV_ADAPT)
     sweep_cfg: tuple[float, ...] = (1.0, 1.3, 1.6, 2.0, 2.5)     # guidance weights of the sweep
     sweep_items: int = 6
-    trace_methods: tuple = (OURS, ABLATIONS[0], ABLATIONS[1])     # Ours, w/o Energy, w/o CTMC
+    trace_methods: tuple = (OURS, ABLATIONS[0], ABLATIONS[1])     # Ours, w/o finishing, w/o Energy
     trace_items: int = 4
-    nudge_m: float = 0.005                                         # stroke-nudge stability
+    stability_methods: tuple = (OURS, STEADY)                      # stroke-nudge stability
+    stability_items: int = 10
+    nudge_m: float = 0.005
     speed_scene_seed: int = 7                                      # a reserved test seed (protocol.py)
     retrieval_clips: int = 60                                      # RetrievAdapt's library size
 
@@ -58,7 +60,8 @@ class BenchConfig:
                    speed=SpeedConfig(repeats=2, ddpm_repeats=1),
                    speed_methods=(OURS, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT),
                    scaling_methods=(OURS, TEACHER_DDIM, RETRIEV_ADAPT),
-                   sweep_cfg=(1.0, 1.6, 2.5), sweep_items=2, trace_methods=(OURS, ABLATIONS[0]), trace_items=1)
+                   sweep_cfg=(1.0, 1.6, 2.5), sweep_items=2, trace_methods=(OURS, ABLATIONS[0]), trace_items=1,
+                   stability_items=5)
 
 
 def machine() -> dict:
@@ -170,22 +173,28 @@ def _diagnostics(bundle, config: BenchConfig, protocol, samples, evaluator, inde
         log(f"sweep cfg {w:g}: {x_key} {figures.get(x_key)} contact F1 {figures.get('ContactF1')}")
     curves = {m: diagnostics.reliability([s for s in samples if s.method == m], refs)
               for m in (OURS.key, TEACHER_DDIM.key)}
-    curvature, alignment, stability = {}, {}, {}
+    curvature, alignment = {}, {}
     for m in config.trace_methods:
-        curv, align, change = [], [], []
+        curv, align = [], []
         for item in items[:config.trace_items]:
-            run = generate(bundle, m, item.storyboard, config.runner.seed, trace=True)
-            curv.append(diagnostics.flow_curvature(run.trace))
-            align.append(diagnostics.energy_alignment(bundle, item.storyboard, run.trace))
+            trace = generate(bundle, m, item.storyboard, config.runner.seed, trace=True).trace
+            curv.append(diagnostics.flow_curvature(trace))
+            align.append(diagnostics.energy_alignment(bundle, item.storyboard, trace))
+        curvature[m.label], alignment[m.label] = diagnostics.mean_series(curv), diagnostics.mean_series(align)
+        log(f"traced {m.label}")
+    stability = {}
+    for m in config.stability_methods:
+        change = []
+        for item in items[:config.stability_items]:
             moved = diagnostics.nudged(item.storyboard, config.nudge_m)
             if moved is not None:
-                change.append(diagnostics.motion_change(
-                    run.clips[0], generate(bundle, m, moved, config.runner.seed).clips[0]))
-        curvature[m.label], alignment[m.label] = diagnostics.mean_series(curv), diagnostics.mean_series(align)
+                runs = [generate(bundle, m, board, config.runner.seed).clips[0] for board in (item.storyboard, moved)]
+                change.append(diagnostics.motion_change(*runs))
         if change:
             stability[m.label] = {"n": len(change), "mean": float(np.mean([c[0] for c in change])),
+                                  "median": float(np.median([c[0] for c in change])),
                                   "max": float(np.max([c[1] for c in change]))}
-        log(f"traced {m.label}")
+        log(f"nudged {m.label}")
     out = {"sweep_x": x_key, "sweep": sweep, "reliability": curves, "curvature": curvature,
            "alignment": alignment, "stability": stability, "nudge_m": config.nudge_m, "figures": {}}
     if figures_dir is not None:
