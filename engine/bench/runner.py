@@ -44,7 +44,7 @@ ABLATIONS = (
     Method("wo_temporal_bias", "w/o temporal bias", SamplerConfig(steps=30, use_temporal_bias=False)),
     Method("trajectory_only", "trajectory-only", SamplerConfig(steps=30, trajectory_only=True)),
 )
-ALL_METHODS = (OURS, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT) + ABLATIONS
+ALL_METHODS = (OURS, STEADY, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT) + ABLATIONS
 
 
 @dataclass
