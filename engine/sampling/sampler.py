@@ -43,8 +43,8 @@ from .energies import ENERGIES, EnergyContext, EnergyWeights, total_energy
 from .events import GenerationResult, StepEvent
 
 METHODS = ("student", "teacher-ddpm", "teacher-ddim")
-# guidance_max_rate for "steady" generation (app checkbox, generate --steady): a 5 mm stroke edit
-# moved joints by 0.9 cm on average instead of 8 cm (10 held-out scenes), foot skate 4% -> 7%.
+# guidance_max_rate of "steady" generation (the app's Steady checkbox, generate --steady);
+# BENCHMARKS.md compares it with the default ("Ours, steady"; stroke-nudge stability).
 STEADY_GUIDANCE_RATE = 5.0
 TRAJECTORY_ONLY = {"trajectory"}
 
