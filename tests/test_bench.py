@@ -46,7 +46,7 @@ def tiny_run(tmp_path_factory):
         speed=SpeedConfig(repeats=1, ddpm_repeats=1, lengths_s=(2.0, 6.0)),
         methods=methods, noise_methods=methods[:1], speed_methods=methods, scaling_methods=methods[:1],
         sweep_cfg=(1.0, 2.0), sweep_items=1, trace_methods=methods[:1], trace_items=1,
-        stability_methods=methods[:1], stability_items=1)
+        stability_methods=methods[:1], stability_items=1, fidelity_items=1)
     results = run_bench(bundle, config, None, root / "figures", log=lambda m: None)
     md, js = root / "BENCHMARKS.md", root / "bench.json"
     write(results, command_line(True, str(md), str(js), None), md, js)
@@ -98,6 +98,7 @@ def test_json_figures_are_finite(tiny_run):
     stability = data["diagnostics"]["stability"]
     assert set(stability) == {"Ours"}
     assert stability["Ours"]["n"] == 1 and 0 <= stability["Ours"]["mean"] <= stability["Ours"]["max"] < 10
+    assert data["diagnostics"]["surrogate_fidelity"] == {}   # an untrained B_rho is never routed through
     checks = {c["metric"]: c for c in data["targets"]["vs_ddim"]["checks"]}
     assert checks["FID"]["relative"] is None and checks["K2D"]["relative"] is not None
     assert data["targets"]["vs_ddpm"]["n"] == 0

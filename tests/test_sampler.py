@@ -121,3 +121,15 @@ def test_requests_it_cannot_serve_fail_clearly(bundle, storyboard):
         next(sample(bundle, three, SamplerConfig()))
     with pytest.raises(SamplerError, match="unknown method"):
         next(sample(bundle, storyboard, SamplerConfig(method="magic")))
+
+
+def test_surrogate_check_reports_a_cosine_per_guided_step_and_changes_nothing(storyboard):
+    routed = untrained_bundle(replace(ModelConfig.default(), schedule=VPSchedule(steps=12)))
+    routed.metadata["stages"] = ["surrogate"]             # route through B_rho (random weights)
+    config = SamplerConfig(steps=4, finish=False)
+    plain_events, plain = drain(sample(routed, storyboard, config))
+    events, checked = drain(sample(routed, storyboard, replace(config, check_surrogate=True)))
+    cosines = [e.energies["surrogate_cosine"] for e in events if "total" in e.energies]
+    assert len(cosines) == sum("total" in e.energies for e in plain_events) > 0
+    assert all(-1.0 <= c <= 1.0 for c in cosines)
+    assert np.array_equal(plain.clips[0].joints, checked.clips[0].joints)

@@ -165,13 +165,21 @@ def _diagnostics_section(diag: dict, relative_to: Path | None) -> str:
            f"- Stroke-nudge stability: the middle point of the first trajectory stroke moved "
            f"{1000 * diag.get('nudge_m', 0):g} mm, same seed; joint displacement between the two results (m), "
            "mean over frames and joints per storyboard, then the mean and median over storyboards, and the "
-           "largest. Steady: the damped guidance of the app's Steady checkbox (generate --steady).", ""]
+           "largest. Steady: the damped guidance of the app's Steady checkbox (generate --steady).",
+           "- Surrogate gradient fidelity: at every guided solver step of Ours, the cosine between the "
+           "energy gradient the sampler routes to the latent through B_rho and the exact one by autograd "
+           "through the decoder (same motion-space gradient; SamplerConfig.check_surrogate).", ""]
     out.append(table(["cfg", diag["sweep_x"], "ContactF1"],
                      [[fmt(p["cfg"], 1), fmt(p.get(diag["sweep_x"])), fmt(p.get("ContactF1"))] for p in diag["sweep"]]))
     if diag.get("stability"):
         out += ["", table(["Method", "n", "mean change", "median change", "max change"],
                           [[label, str(v["n"]), fmt(v["mean"]), fmt(v["median"]), fmt(v["max"])]
                            for label, v in diag["stability"].items()])]
+    fid = diag.get("surrogate_fidelity")
+    if fid:
+        out += ["", table(["Surrogate gradient cosine", "storyboards", "guided steps", "mean", "median", "min"],
+                          [["B_rho vs exact", str(fid["storyboards"]), str(fid["steps"]), fmt(fid["mean"]),
+                            fmt(fid["median"]), fmt(fid["min"])]])]
     for name, path in diag.get("figures", {}).items():
         shown = os.path.relpath(path, relative_to) if relative_to is not None else path
         out += ["", f"![{name}]({shown})"]

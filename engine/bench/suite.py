@@ -46,6 +46,7 @@ class BenchConfig:
     stability_methods: tuple = (OURS, STEADY)                      # stroke-nudge stability
     stability_items: int = 10
     nudge_m: float = 0.005
+    fidelity_items: int = 10                                       # surrogate gradient fidelity
     speed_scene_seed: int = 7                                      # a reserved test seed (protocol.py)
     retrieval_clips: int = 60                                      # RetrievAdapt's library size
 
@@ -61,7 +62,7 @@ class BenchConfig:
                    speed_methods=(OURS, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT),
                    scaling_methods=(OURS, TEACHER_DDIM, RETRIEV_ADAPT),
                    sweep_cfg=(1.0, 1.6, 2.5), sweep_items=2, trace_methods=(OURS, ABLATIONS[0]), trace_items=1,
-                   stability_items=5)
+                   stability_items=5, fidelity_items=5)
 
 
 def machine() -> dict:
@@ -195,8 +196,17 @@ def _diagnostics(bundle, config: BenchConfig, protocol, samples, evaluator, inde
                                   "median": float(np.median([c[0] for c in change])),
                                   "max": float(np.max([c[1] for c in change]))}
         log(f"nudged {m.label}")
+    checked = replace(OURS, sampler=replace(OURS.sampler, check_surrogate=True))
+    cosines = [energies["surrogate_cosine"] for item in items[:config.fidelity_items]
+               for _, _, energies in generate(bundle, checked, item.storyboard, config.runner.seed, trace=True).trace
+               if "surrogate_cosine" in energies]
+    fidelity = ({"storyboards": min(config.fidelity_items, len(items)), "steps": len(cosines),
+                 "mean": float(np.mean(cosines)), "median": float(np.median(cosines)), "min": float(np.min(cosines))}
+                if cosines else {})
+    log("checked the surrogate's gradients")
     out = {"sweep_x": x_key, "sweep": sweep, "reliability": curves, "curvature": curvature,
-           "alignment": alignment, "stability": stability, "nudge_m": config.nudge_m, "figures": {}}
+           "alignment": alignment, "stability": stability, "nudge_m": config.nudge_m,
+           "surrogate_fidelity": fidelity, "figures": {}}
     if figures_dir is not None:
         figures_dir.mkdir(parents=True, exist_ok=True)
         labels = {OURS.key: OURS.label, TEACHER_DDIM.key: TEACHER_DDIM.label}

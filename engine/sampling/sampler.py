@@ -36,6 +36,7 @@ from ..controls import build_controls
 from ..dataset import NUM_HUMANS, fixed_controls
 from ..finishing import finish
 from ..models.encoders import latent_energy
+from ..models.surrogate import exact_latent_gradient, flatten_motion
 from ..models.teacher import ClassifierFreeGuidance, ddim_sample, ddpm_sample
 from ..skeleton import HANDS
 from ..storyboard import Storyboard
@@ -78,6 +79,8 @@ class SamplerConfig:
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
     langevin_step_size: float = 1e-3
     finish: bool = True             # engine.finishing on the final clips ("w/o finishing")
+    check_surrogate: bool = False   # also take the exact gradient through the decoder and report
+                                    # its cosine to B_rho's as the energy "surrogate_cosine" (slower)
     threads: int | None = None      # torch threads for this run (None: leave as is)
 
 
@@ -214,8 +217,13 @@ class _Run:
                     grad = grad + torch.autograd.grad(total.sum(), zg)[0]
                 else:
                     raw = torch.autograd.grad(total.sum(), list(motion.values()), allow_unused=True)
-                    grad = grad + self.surrogate({k: torch.zeros_like(v) if g is None else g
-                                                    for (k, v), g in zip(motion.items(), raw)})
+                    raw = {k: torch.zeros_like(v) if g is None else g for (k, v), g in zip(motion.items(), raw)}
+                    routed = self.surrogate(raw)
+                    grad = grad + routed
+                    if cfg.check_surrogate:
+                        exact = exact_latent_gradient(bundle.vqvae.decode, z0, flatten_motion(raw))
+                        values["surrogate_cosine"] = float(
+                            torch.nn.functional.cosine_similarity(routed.flatten(1), exact.flatten(1), 1).mean())
                 energy = energy + total.detach()
                 values.update({k: float(v.detach().mean()) for k, v in terms.items()})
             if cfg.use_latent:
