@@ -5,7 +5,7 @@ import pytest
 
 from engine.controls import build_controls
 from engine.finishing.contacts import (ContactConfig, _arm_penetration, _swivel_clear, hold_object, object_anchors,
-                                      reach_contacts)
+                                      reach_contacts, step_within_reach)
 from engine.metrics import anchor_error
 from engine.objects import ObjectSpec
 from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
@@ -185,3 +185,40 @@ def test_no_objects():
     untouched = 15 - ContactConfig().blend_frames  # frames before the ease-in
     np.testing.assert_array_equal(out[:untouched], joints[:untouched])
     assert np.abs(out[untouched:15] - joints[untouched:15]).max() > 0
+
+
+def _shortfall(joints, anchors, sb, reach):
+    """Per contact (in storyboard order), per frame of its span: how far its grip lies beyond
+    `reach` of the straight arm."""
+    flat = anchors.reshape(len(joints), -1, 3)
+    out = []
+    for c in sb.contacts:
+        a, (shoulder, elbow, wrist) = sb.agent_index(c.agent), ARMS[0 if c.hand == "left" else 1]
+        arm = (np.linalg.norm(joints[:, a, elbow] - joints[:, a, shoulder], axis=-1)
+               + np.linalg.norm(joints[:, a, wrist] - joints[:, a, elbow], axis=-1))
+        gap = np.linalg.norm(flat[:, sb.object_index(c.object) * 4 + c.anchor] - joints[:, a, shoulder], axis=-1)
+        out.append((gap - reach * arm)[c.start:c.end + 1])
+    return out
+
+
+def test_a_holder_out_of_reach_steps_towards_the_grip_but_not_off_a_keyframe():
+    clip = synthesize("carry_together", 3, fps=20)
+    sb = sketchify(clip, 4, 0.0, 3)
+    joints = clip.joints.astype(float).copy()
+    joints[:, 1] += np.array([0.6, 0.0, 0.0])            # B stands 60 cm off to the side all along
+    config = ContactConfig()
+    anchors = object_anchors(hold_object(joints, clip.obj_pose, sb, config), sb)
+    out = step_within_reach(joints, clip.obj_pose, sb, config)
+    before, after = (_shortfall(j, anchors, sb, config.reach) for j in (joints, out))
+    keys_b = np.array([k.frame for k in sb.keyposes if k.agent == "B"])
+    checked = 0
+    for c, short_before, short_after in zip(sb.contacts, before, after):
+        far = np.abs(np.arange(c.start, c.end + 1)[:, None] - keys_b[None]).min(1) > 15
+        if c.agent == "B" and far.any():
+            assert short_before[far].max() > 0.15 and short_after[far].max() < 0.05
+            checked += 1
+    assert checked
+    np.testing.assert_allclose(out[keys_b, 1], joints[keys_b, 1])        # the sketch says where B stands
+    moved = out - joints
+    np.testing.assert_allclose(moved[..., 1], 0.0)                       # stepping is horizontal
+    np.testing.assert_allclose(moved, moved[:, :, :1].repeat(22, 2))     # whole bodies, no limb edits

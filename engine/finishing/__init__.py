@@ -22,7 +22,7 @@ from ..clip import MotionClip
 from ..rotations import matrix_to_6d
 from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
-from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts
+from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts, step_within_reach
 from .feet import FeetConfig, lock_feet, settle_on_ground
 from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
 
@@ -60,6 +60,8 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)
     if config.paths:
         joints = follow_paths(joints, storyboard, config.warp)
+    if config.contacts and clip.obj_pose is not None and storyboard.objects:   # before the feet plant
+        joints = step_within_reach(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
     if config.feet:  # before the object: hands that hold it must not move after it is placed
         joints = lock_feet(settle_on_ground(joints, config.foot), clip.fps, config.foot)
     kw = {}

@@ -1,7 +1,9 @@
 """Contacts: make held objects follow the hands that hold them, and put the hands on their grips.
 
-Two steps, run on decoded joint positions (N frames, H people, 22 joints, world metres, Y up):
+Three steps, run on decoded joint positions (N frames, H people, 22 joints, world metres, Y up):
 
+0. `step_within_reach` moves a holder whose grip is beyond arm's reach towards it (two people
+   carrying one box drift apart along their timing-free paths; an arm cannot close that gap).
 1. `hold_object` rebuilds each object's pose from the storyboard's contacts: a rigid body that
    moves only while held (an upright yaw + translation fit of its grips to the holding wrists),
    resting on the ground before, between and after holds, where the sketch puts it.
@@ -49,6 +51,9 @@ class ContactConfig:
     min_spread: float = 1e-4       # m^2: grip spread below which the yaw fit is undefined (one hand)
     clear_iterations: int = 4      # pushes of a held object out of its holders' bodies (0: none)
     swivel_cost: float = 0.01      # m of penetration worth turning an elbow by one radian
+    reach: float = 0.95            # share of the straight arm's length a holder may reach without stepping
+    reach_passes: int = 2          # steps towards the grips (smoothing leaves part of each one undone)
+    reach_smoothing: float = 3.0   # frames; Gaussian sigma of a holder's step offsets
 
 
 def _anchor_table(storyboard: Storyboard) -> np.ndarray:
@@ -223,6 +228,54 @@ def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
         out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
                               storyboard.fps, config, rests)
     return out
+
+
+def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,
+                      config: ContactConfig = ContactConfig()) -> np.ndarray:
+    """People moved (whole bodies, horizontally) until each grip they hold lies within
+    `config.reach` of the straight arm from the shoulder; the object is refitted to the moved
+    hands between passes. The move eases in and out over `blend_frames` around each hold and is
+    zero on the person's sketched keyframes, where the sketch says where they stand.
+    joints (N, H, 22, 3), obj_pose (N, O, 7) decoded -> joints (N, H, 22, 3)."""
+    joints = np.asarray(joints, float).copy()
+    n, h = joints.shape[:2]
+    grips = [(c, storyboard.agent_index(c.agent), HAND_NAMES.index(c.hand)) for c in storyboard.contacts
+             if c.object is not None]
+    if not grips:
+        return joints
+    k = _anchor_table(storyboard).shape[1]
+    pinned = np.zeros((n, h), bool)
+    for key in storyboard.keyposes:
+        pinned[key.frame, storyboard.agent_index(key.agent)] = True
+    frames = np.arange(n)
+    # The object where the hands put it now; refitting it to moved hands would carry it away
+    # with the person stepping towards it.
+    anchors = object_anchors(hold_object(joints, obj_pose, storyboard, config), storyboard).reshape(n, -1, 3)
+    for _ in range(config.reach_passes):
+        need, weight = np.zeros((n, h, 3)), np.zeros((n, h))
+        for c, a, side in grips:
+            shoulder = joints[:, a, SHOULDERS[side]]
+            arm = (np.linalg.norm(joints[:, a, ELBOWS[side]] - shoulder, axis=-1)
+                   + np.linalg.norm(joints[:, a, HANDS[side]] - joints[:, a, ELBOWS[side]], axis=-1))
+            reach = anchors[np.clip(frames, c.start, c.end), storyboard.object_index(c.object) * k + c.anchor] - shoulder
+            across = reach * (1.0, 0.0, 1.0)
+            # The horizontal distance at which the grip is `reach` of the arm away (0 when it is
+            # farther than that below or above the shoulder: then stand right by it).
+            allowed = np.sqrt(np.maximum((config.reach * arm) ** 2 - reach[:, 1] ** 2, 0.0))
+            distance = np.linalg.norm(across, axis=-1)
+            short = across * (np.maximum(distance - allowed, 0.0) / np.maximum(distance, 1e-9))[:, None]
+            w = _span_weight(n, c.start, c.end, config.blend_frames)
+            need[:, a] += w[:, None] * short
+            weight[:, a] += w
+        step = need / np.maximum(weight, 1.0)[..., None]          # both hands' shortfalls averaged
+        step = gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
+        for a in range(h):
+            keys = np.flatnonzero(pinned[:, a])
+            if len(keys):   # 1 away from the keyframes, 0 on them, eased over blend_frames
+                far = np.min(np.abs(frames[:, None] - keys[None]), axis=1)
+                step[:, a] *= smoothstep(far / (config.blend_frames + 1))[:, None]
+        joints += step[:, :, None]
+    return joints
 
 
 def _span_weight(n: int, start: int, end: int, blend: int) -> np.ndarray:
