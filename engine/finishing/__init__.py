@@ -9,7 +9,8 @@ that keep each person's bone lengths:
 2. keyposes and pelvis paths, by motion warping (warp.py);
 3. feet standing on the ground, planted while in stance, stepping between plants (feet.py);
 4. the object as a rigid body that moves only in the hands that hold it, and the arms reaching
-   its grips (or the partner's hand) over every contact span (contacts.py).
+   its grips (or the partner's hand) over every contact span (contacts.py); a holder the grip is
+   beyond arm's reach of steps towards it first, before the feet are planted.
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
 """
 from __future__ import annotations
