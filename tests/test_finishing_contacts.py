@@ -222,3 +222,28 @@ def test_a_holder_out_of_reach_steps_towards_the_grip_but_not_off_a_keyframe():
     moved = out - joints
     np.testing.assert_allclose(moved[..., 1], 0.0)                       # stepping is horizontal
     np.testing.assert_allclose(moved, moved[:, :, :1].repeat(22, 2))     # whole bodies, no limb edits
+
+
+def test_a_shared_hold_sits_within_every_holders_vertical_reach():
+    """Two people carrying one box, one of them sunk 0.5 m (as a crouch would): the box goes
+    where both reach it, not to the mean of their wrists; in the synthesized carry (a real pick-up
+    from the floor) it moves by millimetres at most."""
+    clip = synthesize("carry_together", 3, fps=20)
+    sb = sketchify(clip, 4, 0.0, 3)
+    config = ContactConfig()
+    free = ContactConfig(grip_rise=100.0)
+    np.testing.assert_allclose(hold_object(clip.joints, clip.obj_pose, sb, config),
+                               hold_object(clip.joints, clip.obj_pose, sb, free), atol=0.005)
+    joints = clip.joints.astype(float).copy()
+    joints[:, 0] -= np.array([0.0, 0.5, 0.0])
+    for cfg, inside in ((free, False), (config, True)):
+        anchors = object_anchors(hold_object(joints, clip.obj_pose, sb, cfg), sb)[:, 0]
+        worst = 0.0
+        for c in sb.contacts:
+            a, (shoulder, elbow, wrist) = sb.agent_index(c.agent), ARMS[0 if c.hand == "left" else 1]
+            span = slice(c.start + config.lift_frames + 3, c.end - 3)   # past the lift's ease-in
+            arm = (np.linalg.norm(joints[span, a, elbow] - joints[span, a, shoulder], axis=-1)
+                   + np.linalg.norm(joints[span, a, wrist] - joints[span, a, elbow], axis=-1))
+            rise = np.abs(anchors[span, c.anchor, 1] - joints[span, a, shoulder, 1])
+            worst = max(worst, float(np.max(rise - config.grip_rise * config.reach * arm)))
+        assert (worst < 0.02) == inside, worst

@@ -5,8 +5,9 @@ Three steps, run on decoded joint positions (N frames, H people, 22 joints, worl
 0. `step_within_reach` moves a holder whose grip is beyond arm's reach towards it (two people
    carrying one box drift apart along their timing-free paths; an arm cannot close that gap).
 1. `hold_object` rebuilds each object's pose from the storyboard's contacts: a rigid body that
-   moves only while held (an upright yaw + translation fit of its grips to the holding wrists),
-   resting on the ground before, between and after holds, where the sketch puts it.
+   moves only while held (an upright yaw + translation fit of its grips to the holding wrists,
+   at a height every holder's arm reaches), resting on the ground before, between and after
+   holds, where the sketch puts it.
 2. `reach_contacts` moves each contact's wrist onto its grip (or the other person's hand) by
    exact two-bone IK from the shoulder, eased in before the span and out after it. Only elbows
    and wrists move, and every bone keeps its length; an elbow whose arm would pass through an
@@ -54,6 +55,7 @@ class ContactConfig:
     reach: float = 0.95            # share of the straight arm's length a holder may reach without stepping
     reach_passes: int = 2          # steps towards the grips (smoothing leaves part of each one undone)
     reach_smoothing: float = 3.0   # frames; Gaussian sigma of a holder's step offsets
+    grip_rise: float = 0.9         # share of the reach a held grip may lie below or above its shoulder
 
 
 def _anchor_table(storyboard: Storyboard) -> np.ndarray:
@@ -133,6 +135,24 @@ def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints
     return pos
 
 
+def _within_vertical_reach(height: np.ndarray, joints: np.ndarray, grips: np.ndarray, held: np.ndarray,
+                           config: ContactConfig) -> np.ndarray:
+    """A held object's origin height (N,) moved into the band where every held grip lies within
+    `grip_rise` of the reach above or below its holder's shoulder (the middle of the band when
+    the holders' bands do not overlap): the mean of a standing and a crouching holder's wrists
+    would otherwise put the grips out of both their reaches. joints (N, H, 22, 3); grips, held
+    as in _hold_one (N, 2H, 3) local, (N, 2H)."""
+    n, h = joints.shape[:2]
+    shoulder, elbow, wrist = (joints[:, :, list(j)].reshape(n, 2 * h, 3) for j in (SHOULDERS, ELBOWS, HANDS))
+    arm = np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1)
+    rise = config.grip_rise * config.reach * arm
+    base = shoulder[..., 1] - grips[..., 1]                    # origin height with the grip at the shoulder
+    band = held.any(axis=1)                                    # elsewhere the band is the height itself
+    low = np.where(band, np.max(np.where(held, base - rise, -np.inf), axis=1), height)
+    high = np.where(band, np.min(np.where(held, base + rise, np.inf), axis=1), height)
+    return np.where(low <= high, np.clip(height, low, high), (low + high) / 2)
+
+
 def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | None = None) -> np.ndarray | None:
     """Where object o rests on the ground over frames [first, last] according to its sketch (3,),
     or None when nothing sketched falls there. An orthographic sketch gives a grounded object's
@@ -173,6 +193,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     else:
         fit_yaw = np.full(n, still_yaw)
     fit_pos = _fit_position(wrists, grips, held, fit_yaw)
+    fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
     fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, held.reshape(n, h, 2).any(axis=-1),
                                 config.clear_iterations)
 
