@@ -13,7 +13,7 @@ from engine.skeleton import NUM_JOINTS, rest_pose
 render = pytest.importorskip("engine.render")
 from engine.render import OrbitCamera, RenderConfig, SceneRenderer, SceneState, scene_from_clip  # noqa: E402
 from engine.render.example import carry_clip, carry_storyboard  # noqa: E402
-from engine.render.sheets import write_contact_sheet, write_gif  # noqa: E402
+from engine.render.sheets import clip_camera, write_contact_sheet, write_gif  # noqa: E402
 
 
 def standing_apart_clip(frames: int = 2) -> MotionClip:
@@ -156,3 +156,14 @@ def test_contact_sheet_and_gif(tmp_path):
     assert written == 8
     with Image.open(tmp_path / "clip.gif") as gif:
         assert gif.n_frames == 8
+
+
+@pytest.mark.parametrize("angle", [0.0, 60.0, 150.0, 270.0])
+def test_sheets_look_across_the_line_between_the_people(angle):
+    clip = standing_apart_clip()
+    turn = np.radians(angle)
+    rot = np.array([[np.cos(turn), 0, np.sin(turn)], [0, 1, 0], [-np.sin(turn), 0, np.cos(turn)]])
+    clip.joints = clip.joints @ rot.T
+    right = clip_camera(clip, None, 1.5).basis()[0]
+    pelvis = clip.joints[0, :, 0]
+    assert (pelvis[1] - pelvis[0]) @ right == pytest.approx(2.0, abs=1e-6)   # side by side, first on the left

@@ -60,7 +60,7 @@ def run(config: BenchmarkConfig) -> dict:
     clip = synthesize(config.scenario, config.seed)
     storyboard = Storyboard.load(config.storyboard)
     renderer = SceneRenderer(config.width, config.height)
-    camera = clip_camera(clip, storyboard, config.width / config.height)  # as the viewport frames it
+    camera = clip_camera(clip, storyboard, config.width / config.height)  # framed as the contact sheets are
     times: dict[str, list[float]] = {"scene": [], "draw": [], "readback": [], "frame": []}
     for n in range(config.warmup + config.frames):
         camera.orbit(config.orbit_degrees, 0.0)

@@ -16,10 +16,18 @@ from .scene import SceneOptions, scene_from_clip
 
 
 def clip_camera(clip: MotionClip, storyboard: Storyboard | None, aspect: float) -> OrbitCamera:
-    """One camera for every frame: framed on the whole clip (all frames, paths, ghosts)."""
+    """One camera for every frame: framed on the whole clip (all frames, paths, ghosts) and, for
+    two or more people, looking across the line between the first two (first on the left), so
+    that neither hides the other or what passes between them."""
     everything = scene_from_clip(clip, 0, storyboard)
     everything.people = clip.joints.reshape(-1, 22, 3)
     camera = OrbitCamera()
+    if clip.joints.shape[1] >= 2:
+        apart = (clip.joints[:, 1, 0] - clip.joints[:, 0, 0])[:, [0, 2]]       # (N, 2) horizontal
+        apart = apart / np.maximum(np.linalg.norm(apart, axis=-1, keepdims=True), 1e-9)
+        x, z = apart.mean(axis=0)
+        if np.hypot(x, z) > 0.1:   # people that swap sides have no line to look across
+            camera.yaw = float(np.degrees(np.arctan2(-z, x)))                 # camera right = first -> second
     camera.frame_all(everything.points(), aspect)
     return camera
 
