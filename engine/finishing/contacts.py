@@ -253,10 +253,10 @@ def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
 
 def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,
                       config: ContactConfig = ContactConfig()) -> np.ndarray:
-    """People moved (whole bodies, horizontally) until each grip they hold lies within
-    `config.reach` of the straight arm from the shoulder; the object is refitted to the moved
-    hands between passes. The move eases in and out over `blend_frames` around each hold and is
-    zero on the person's sketched keyframes, where the sketch says where they stand.
+    """People moved (whole bodies, horizontally) until each grip they hold, on the object as
+    hold_object fits it to their hands now, lies within `config.reach` of the straight arm from
+    the shoulder. The move eases in and out over `blend_frames` around each hold and is zero on
+    the person's sketched keyframes, where the sketch says where they stand.
     joints (N, H, 22, 3), obj_pose (N, O, 7) decoded -> joints (N, H, 22, 3)."""
     joints = np.asarray(joints, float).copy()
     n, h = joints.shape[:2]
@@ -265,10 +265,12 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
     if not grips:
         return joints
     k = _anchor_table(storyboard).shape[1]
-    pinned = np.zeros((n, h), bool)
-    for key in storyboard.keyposes:
-        pinned[key.frame, storyboard.agent_index(key.agent)] = True
     frames = np.arange(n)
+    free = np.ones((n, h))          # 0 on a person's keyframes, easing to 1 over blend_frames
+    for a, agent in enumerate(storyboard.agents):
+        keys = np.array([key.frame for key in storyboard.keyposes if key.agent == agent.id])
+        if len(keys):
+            free[:, a] = smoothstep(np.min(np.abs(frames[:, None] - keys[None]), axis=1) / (config.blend_frames + 1))
     # The object where the hands put it now; refitting it to moved hands would carry it away
     # with the person stepping towards it.
     anchors = object_anchors(hold_object(joints, obj_pose, storyboard, config), storyboard).reshape(n, -1, 3)
@@ -289,12 +291,7 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
             need[:, a] += w[:, None] * short
             weight[:, a] += w
         step = need / np.maximum(weight, 1.0)[..., None]          # both hands' shortfalls averaged
-        step = gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
-        for a in range(h):
-            keys = np.flatnonzero(pinned[:, a])
-            if len(keys):   # 1 away from the keyframes, 0 on them, eased over blend_frames
-                far = np.min(np.abs(frames[:, None] - keys[None]), axis=1)
-                step[:, a] *= smoothstep(far / (config.blend_frames + 1))[:, None]
+        step = gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest") * free[..., None]
         joints += step[:, :, None]
     return joints
 
