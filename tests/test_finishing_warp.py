@@ -68,6 +68,27 @@ def test_warp_to_keyposes_passes_through_every_keypose_and_keeps_the_skeleton(sc
     assert np.isfinite(warped).all()
 
 
+def test_a_keypose_the_body_leans_into_keeps_the_legs_under_it_between_keys(scene):
+    """The generated upper body bent 70 degrees forward about the pelvis (legs untouched) while
+    the sketch shows it upright: between keys the warp straightens the torso part way, and the
+    feet stay where they stood (a rotation warp folded legs up off the ground here)."""
+    clip, sb = scene
+    joints, offsets = consistent_skeleton(clip.joints.astype(float))
+    upper = [j for j in range(22) if j not in (0, 1, 2, 4, 5, 7, 8, 10, 11)]   # spine and up
+    bend = np.radians(70.0)
+    for h in range(2):
+        side = joints[:, h, 1] - joints[:, h, 2]                               # hip line: the bend axis
+        axis = side / np.linalg.norm(side, axis=-1, keepdims=True)
+        rel = joints[:, h, upper] - joints[:, h, :1]
+        along = np.sum(rel * axis[:, None], -1, keepdims=True) * axis[:, None]
+        joints[:, h, upper] = (joints[:, h, :1] + along + np.cos(bend) * (rel - along)
+                               + np.sin(bend) * np.cross(axis[:, None], rel))
+    warped = warp_to_keyposes(joints, offsets, sb)
+    feet = [10, 11]
+    assert np.abs(warped[:, :, feet] - joints[:, :, feet]).max() < 0.15
+    assert warped[:, :, feet, 1].min(-1).max() < 0.12                         # one foot always down
+
+
 def test_follow_paths_puts_the_pelvis_on_its_stroke_within_its_tolerance(scene):
     clip, sb = scene
     joints, _ = consistent_skeleton(disturbed(clip.joints) + (0.3, 0.0, 0.0))

@@ -2,9 +2,9 @@
 
 A generated motion follows its sketch only roughly. At every keyframe the warp solves the pose
 that lands exactly on the sketched keypose in the sketch plane, and along every pelvis stroke
-the root position that lies on the stroke; the differences (a local rotation offset per joint,
-an offset of the root) are spread over the neighbouring frames, so the motion keeps its own
-dynamics while passing through the sketch.
+the root position that lies on the stroke; the differences (each joint's displacement from the
+pelvis in the body's own frame, an offset of the root) are spread over the neighbouring frames,
+so the motion keeps its own dynamics while passing through the sketch.
 
 A 2D sketch does not give depth; the ground does. Every joint slides along its camera ray to
 where its bone keeps its length (on the side nearer the generated pose), and the whole figure
@@ -24,12 +24,12 @@ from scipy.ndimage import gaussian_filter1d
 
 from ..camera import StoryboardCamera
 from ..controls import closest_on_polyline
-from ..rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from ..skeleton import FEET, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
+from ..synth.reach import yaw_matrix
 from ..synth.trajectory import smoothstep
 
-PELVIS = JOINT_INDEX["pelvis"]
+PELVIS, L_HIP, R_HIP = JOINT_INDEX["pelvis"], JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]
 LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera is too level to
               # place points by their height
 
@@ -123,11 +123,25 @@ def spread(n: int, keys: list[int], values: np.ndarray, falloff: int) -> np.ndar
     return (out * smoothstep(1.0 - gap / max(falloff, 1))[:, None]).reshape((n,) + values.shape[1:])
 
 
+def heading(joints: np.ndarray) -> np.ndarray:
+    """Yaw (...) of the hip line about +Y, in yaw_matrix's convention: yaw_matrix(heading) turns
+    the body's own frame (hips along +X) into the world. joints (..., 22, 3) -> (...)."""
+    across = joints[..., L_HIP, :] - joints[..., R_HIP, :]
+    return np.arctan2(-across[..., 2], across[..., 0])
+
+
 def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
                      config: WarpConfig = WarpConfig()) -> np.ndarray:
     """Every person passes through their sketched keyposes (exactly in the sketch plane, where
-    bone lengths allow). joints (N, H, 22, 3), offsets (H, 22, 3) -> (N, H, 22, 3)."""
+    bone lengths allow). joints (N, H, 22, 3), offsets (H, 22, 3) -> (N, H, 22, 3).
+
+    The offsets spread between keys are joint displacements relative to the pelvis, in the
+    body's own (heading) frame, so they turn with the body; the skeleton is then refitted. Local
+    rotation offsets would be the textbook choice, but a solved keypose often tilts the IK's
+    pelvis frame by 60 degrees or more and the hips back by as much; half of each, between keys,
+    folds the legs up off the ground (a carrier crawled through the let_go example)."""
     out = joints.copy()
+    n = len(joints)
     for h, agent in enumerate(storyboard.agents):
         keys = sorted((k for k in storyboard.keyposes if k.agent == agent.id and k.mask.any()),
                       key=lambda k: k.frame)
@@ -135,15 +149,15 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
             continue
         lengths = np.linalg.norm(offsets[h], axis=-1)
         frames = [k.frame for k in keys]
-        rotations = inverse_kinematics(joints[:, h], offsets[h])                  # (N, 22, 3, 3)
         posed = np.stack([solve_keypose(joints[k.frame, h], k.points, k.mask, storyboard.camera, lengths,
                                         config.foot_height) for k in keys])      # (K, 22, 3)
-        delta = inverse_kinematics(posed, offsets[h]) @ np.swapaxes(rotations[frames], -1, -2)
-        turns, shifts = matrix_to_axis_angle(delta), posed[:, PELVIS] - joints[frames, h, PELVIS]
-        n = len(joints)
-        turn = axis_angle_to_matrix(spread(n, frames, turns, config.falloff))
-        root = joints[:, h, PELVIS] + spread(n, frames, shifts, config.falloff)
-        out[:, h] = forward_kinematics(root, turn @ rotations, offsets[h])
+        body = joints[:, h] - joints[:, h, PELVIS:PELVIS + 1]                     # (N, 22, 3) from the pelvis
+        turn = yaw_matrix(heading(joints[:, h]))                                  # (N, 3, 3) body -> world
+        moved = posed - posed[:, PELVIS:PELVIS + 1] - body[frames]
+        local = np.einsum("kji,kpj->kpi", turn[frames], moved)                   # world -> body frame
+        root = joints[:, h, PELVIS] + spread(n, frames, posed[:, PELVIS] - joints[frames, h, PELVIS], config.falloff)
+        target = root[:, None] + body + np.einsum("nij,npj->npi", turn, spread(n, frames, local, config.falloff))
+        out[:, h] = forward_kinematics(root, inverse_kinematics(target, offsets[h]), offsets[h])
     return out
 
 
