@@ -135,6 +135,12 @@ def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints
     return pos
 
 
+def _arm_lengths(joints: np.ndarray) -> np.ndarray:
+    """Shoulder-to-elbow plus elbow-to-wrist length of each arm: (N, H, 22, 3) -> (N, H, 2)."""
+    shoulder, elbow, wrist = (joints[:, :, list(j)] for j in (SHOULDERS, ELBOWS, HANDS))
+    return np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1)
+
+
 def _within_vertical_reach(height: np.ndarray, joints: np.ndarray, grips: np.ndarray, held: np.ndarray,
                            config: ContactConfig) -> np.ndarray:
     """A held object's origin height (N,) moved into the band where every held grip lies within
@@ -143,10 +149,8 @@ def _within_vertical_reach(height: np.ndarray, joints: np.ndarray, grips: np.nda
     would otherwise put the grips out of both their reaches. joints (N, H, 22, 3); grips, held
     as in _hold_one (N, 2H, 3) local, (N, 2H)."""
     n, h = joints.shape[:2]
-    shoulder, elbow, wrist = (joints[:, :, list(j)].reshape(n, 2 * h, 3) for j in (SHOULDERS, ELBOWS, HANDS))
-    arm = np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1)
-    rise = config.grip_rise * config.reach * arm
-    base = shoulder[..., 1] - grips[..., 1]                    # origin height with the grip at the shoulder
+    rise = config.grip_rise * config.reach * _arm_lengths(joints).reshape(n, 2 * h)
+    base = joints[:, :, list(SHOULDERS), 1].reshape(n, 2 * h) - grips[..., 1]   # origin height, grip at the shoulder
     band = held.any(axis=1)                                    # elsewhere the band is the height itself
     low = np.where(band, np.max(np.where(held, base - rise, -np.inf), axis=1), height)
     high = np.where(band, np.min(np.where(held, base + rise, np.inf), axis=1), height)
@@ -274,12 +278,11 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
     # The object where the hands put it now; refitting it to moved hands would carry it away
     # with the person stepping towards it.
     anchors = object_anchors(hold_object(joints, obj_pose, storyboard, config), storyboard).reshape(n, -1, 3)
+    arms = _arm_lengths(joints)                                   # whole-body steps keep them
     for _ in range(config.reach_passes):
         need, weight = np.zeros((n, h, 3)), np.zeros((n, h))
         for c, a, side in grips:
-            shoulder = joints[:, a, SHOULDERS[side]]
-            arm = (np.linalg.norm(joints[:, a, ELBOWS[side]] - shoulder, axis=-1)
-                   + np.linalg.norm(joints[:, a, HANDS[side]] - joints[:, a, ELBOWS[side]], axis=-1))
+            shoulder, arm = joints[:, a, SHOULDERS[side]], arms[:, a, side]
             reach = anchors[np.clip(frames, c.start, c.end), storyboard.object_index(c.object) * k + c.anchor] - shoulder
             across = reach * (1.0, 0.0, 1.0)
             # The horizontal distance at which the grip is `reach` of the arm away (0 when it is

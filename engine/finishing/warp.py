@@ -26,7 +26,7 @@ from ..camera import StoryboardCamera
 from ..controls import closest_on_polyline
 from ..skeleton import FEET, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
-from ..synth.reach import yaw_matrix
+from ..synth.reach import UP, heading_of, yaw_matrix
 from ..synth.trajectory import smoothstep
 
 PELVIS, L_HIP, R_HIP = JOINT_INDEX["pelvis"], JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]
@@ -123,13 +123,6 @@ def spread(n: int, keys: list[int], values: np.ndarray, falloff: int) -> np.ndar
     return (out * smoothstep(1.0 - gap / max(falloff, 1))[:, None]).reshape((n,) + values.shape[1:])
 
 
-def heading(joints: np.ndarray) -> np.ndarray:
-    """Yaw (...) of the hip line about +Y, in yaw_matrix's convention: yaw_matrix(heading) turns
-    the body's own frame (hips along +X) into the world. joints (..., 22, 3) -> (...)."""
-    across = joints[..., L_HIP, :] - joints[..., R_HIP, :]
-    return np.arctan2(-across[..., 2], across[..., 0])
-
-
 def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
                      config: WarpConfig = WarpConfig()) -> np.ndarray:
     """Every person passes through their sketched keyposes (exactly in the sketch plane, where
@@ -152,7 +145,8 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         posed = np.stack([solve_keypose(joints[k.frame, h], k.points, k.mask, storyboard.camera, lengths,
                                         config.foot_height) for k in keys])      # (K, 22, 3)
         body = joints[:, h] - joints[:, h, PELVIS:PELVIS + 1]                     # (N, 22, 3) from the pelvis
-        turn = yaw_matrix(heading(joints[:, h]))                                  # (N, 3, 3) body -> world
+        hips = joints[:, h, L_HIP] - joints[:, h, R_HIP]
+        turn = yaw_matrix(heading_of(np.cross(hips, UP)))                         # (N, 3, 3) body -> world
         moved = posed - posed[:, PELVIS:PELVIS + 1] - body[frames]
         local = np.einsum("kji,kpj->kpi", turn[frames], moved)                   # world -> body frame
         root = joints[:, h, PELVIS] + spread(n, frames, posed[:, PELVIS] - joints[frames, h, PELVIS], config.falloff)
