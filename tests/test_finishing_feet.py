@@ -89,6 +89,27 @@ def test_settle_does_not_pop():
     assert abs(shift[0]) < 1e-3 and abs(shift[-1] + 0.05) < 1e-3
 
 
+def test_key_frames_keep_their_height_and_plant_the_feet_where_they_stand(clean):
+    """Finishing hands the feet the keyposes' frames: the warp placed those poses on the sketch,
+    so settling leaves their height and a stance holding a key plants the foot where it is at
+    the key (not at the stance's mean, which moved sketched feet by 5 cm)."""
+    joints = slid(clean["carry_together"]) + np.array([0.0, 0.015, 0.0])
+    keys = [[30, 70], [50]]
+    settled = settle_on_ground(joints, keys=keys)
+    for h, frames in enumerate(keys):
+        np.testing.assert_allclose(settled[frames, h], joints[frames, h], atol=1e-12)
+    assert np.abs(lowest_foot(settled)[90:] - FeetConfig().foot_height).max() < 0.01   # far from keys: settled
+    out = lock_feet(settled, FPS, keys=keys)
+    pinned = 0
+    for h, frames in enumerate(keys):
+        for foot in FEET:
+            for start, stop in stance_intervals(settled[:, h, foot], FPS):
+                for k in (k for k in frames if start <= k < stop):
+                    np.testing.assert_allclose(out[k, h, foot, [0, 2]], settled[k, h, foot, [0, 2]], atol=1e-6)
+                    pinned += 1
+    assert pinned >= 2
+
+
 def test_good_motion_is_left_alone(clean):
     for name, joints in clean.items():
         out = finish(joints)

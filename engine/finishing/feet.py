@@ -15,6 +15,7 @@ that already swing clear of the floor keep their own swing; good motion passes u
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +25,7 @@ from ..rotations import normalize
 from ..skeleton import ANKLES, FEET, JOINT_INDEX
 from ..synth.reach import UP, two_bone_ik
 from ..synth.trajectory import smoothstep
+from .keys import spread
 
 HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
 KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
@@ -50,9 +52,11 @@ class FeetConfig:
     step_height: float = 0.08        # m; peak of a made-up step (the synthesizer's swing lift)
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
     settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
+    key_falloff: int = 12            # frames over which settling fades back in around a key frame
 
 
-def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> np.ndarray:
+def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig(),
+                     keys: Sequence[Sequence[int]] | None = None) -> np.ndarray:
     """Shift each person vertically so that their lower foot stands at config.foot_height.
 
     joints (N, H, 22, 3) -> (N, H, 22, 3). The shift is per person and frame, the same for all
@@ -62,6 +66,9 @@ def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> n
     joints = np.asarray(joints, float)
     lowest = joints[:, :, list(FEET), 1].min(axis=-1)                           # (N, H)
     shift = gaussian_filter1d(config.foot_height - lowest, config.settle_sigma, axis=0, mode="nearest")
+    for h, frames in enumerate(keys or ()):
+        if frames:
+            shift[:, h] -= spread(len(shift), frames, shift[frames, h], config.key_falloff)
     return joints + shift[:, :, None, None] * UP
 
 
@@ -96,8 +103,10 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
     return out
 
 
-def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetConfig) -> np.ndarray:
-    """Where one foot (N, 3) should be, given its stances -> (N, 3)."""
+def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetConfig,
+               keys: Sequence[int] = ()) -> np.ndarray:
+    """Where one foot (N, 3) should be, given its stances -> (N, 3). A stance holding a key
+    frame plants the foot where it is at its first key (there, the sketch put it)."""
     n = len(foot)
     on = np.zeros(n, bool)
     target = foot.copy()
@@ -105,7 +114,8 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
     flat = maximum_filter1d(foot[:, 1], 3, mode="nearest") < config.stance_height
     for start, stop in intervals:
         on[start:stop] = True
-        target[start:stop, [0, 2]] = np.mean(foot[start:stop, [0, 2]], axis=0)
+        held = [k for k in keys if start <= k < stop]
+        target[start:stop, [0, 2]] = foot[held[0], [0, 2]] if held else np.mean(foot[start:stop, [0, 2]], axis=0)
         target[start:stop, 1] = np.where(flat[start:stop], config.foot_height, foot[start:stop, 1])
     correction = target - foot                                                 # (N, 3), 0 off stance
     # Before the first stance, after the last and across long gaps the foot keeps its own path:
@@ -132,7 +142,8 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
     return goal
 
 
-def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig()) -> np.ndarray:
+def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
+              keys: Sequence[Sequence[int]] | None = None) -> np.ndarray:
     """Pin each foot during its stance intervals and re-solve the leg from the hip.
 
     joints (N, H, 22, 3) -> (N, H, 22, 3); only knees, ankles and feet move. During a stance the
@@ -154,7 +165,7 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig())
                 busy[start:stop] = False
             if not intervals:
                 continue
-            goal = _foot_goal(leg[:, toe], intervals, config)
+            goal = _foot_goal(leg[:, toe], intervals, config, keys[h] if keys is not None else ())
             moved = np.any(goal != leg[:, toe], axis=-1)                       # faded out: stays exact
             leg = leg[moved]
             foot_offset = leg[:, toe] - leg[:, ankle]

@@ -6,11 +6,12 @@ the root position that lies on the stroke; the differences (each joint's displac
 pelvis in the body's own frame, an offset of the root) are spread over the neighbouring frames,
 so the motion keeps its own dynamics while passing through the sketch.
 
-A 2D sketch does not give depth; the ground does. Every joint slides along its camera ray to
-where its bone keeps its length (on the side nearer the generated pose), and the whole figure
-then slides along the camera's viewing direction, which keeps the sketch exact, until its lower
-foot stands on the ground. Pelvis paths are lifted the same way: the body moves to where the
-stroke's ray meets the pelvis height at which the lower foot touches the ground.
+A 2D sketch does not give depth; the ground does. Every sketched joint slides along its camera
+ray to a depth that keeps the generated pose's depth differences along its bones while the feet
+it stands on touch the ground (a least-squares fit); a slide of the whole figure along the
+viewing direction keeps the sketch exact. Pelvis paths are lifted to where the stroke's ray
+meets the pelvis height at which the lower foot touches the ground; they leave the keyposes
+where the warp put them.
 
 Joint arrays are (N, H, 22, 3) in metres with consistent bone lengths: `offsets` (H, 22, 3) are
 each person's bones, FK(joints[:, h, 0], IK(joints[:, h], offsets[h]), offsets[h]) == joints.
@@ -21,13 +22,14 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
+from scipy.optimize import least_squares
 
 from ..camera import StoryboardCamera
 from ..controls import closest_on_polyline
 from ..skeleton import FEET, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
-from ..synth.trajectory import smoothstep
+from .keys import key_frames, spread
 
 PELVIS, L_HIP, R_HIP = JOINT_INDEX["pelvis"], JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]
 LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera is too level to
@@ -42,6 +44,11 @@ class WarpConfig:
     path_tolerance: float = 0.03  # m in the sketch plane; closer than this to its stroke, a pelvis is
                                   # left alone (a hand-drawn stroke wobbles; the walk should not)
     foot_height: float = 0.02     # m; height of the foot joint standing on the ground (as FeetConfig's)
+    # Keypose depth fit (solve_keypose); weights of its residuals (m), 1 for a bone's depth change.
+    stance_tolerance: float = 0.08  # m; a generated foot this close to the lower one's height stands
+    ground_weight: float = 10.0   # a standing foot's height above foot_height
+    bone_weight: float = 1.0      # a bone's length error
+    depth_anchor: float = 1e-3    # a joint's depth change: places a figure no standing foot places
 
 
 LIMBS = [JOINT_INDEX[n] for n in ("l_knee", "r_knee", "l_ankle", "r_ankle", "l_elbow", "r_elbow",
@@ -67,60 +74,55 @@ def sketched_scale(offsets: np.ndarray, storyboard: Storyboard, agent: int, quan
     return float(np.clip(np.quantile(ratios, quantile), 1.0, most)) if ratios else 1.0
 
 
-def _ray_depth(camera: StoryboardCamera, uv: np.ndarray, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The ray through sketch point uv (2,) as origin (3,) + s * back, and the s of `point` (3,) on it."""
-    right, up, back = camera.basis()
-    origin = np.asarray(camera.target) + uv[0] * right + uv[1] * up
-    return origin, float((point - origin) @ back)
-
-
 def _grounding_height(joints: np.ndarray, foot_height: float) -> np.ndarray:
     """How far (...) poses (..., 22, 3) must move up for their lower foot to stand on the ground."""
     return foot_height - joints[..., list(FEET), 1].min(-1)
 
 
 def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: StoryboardCamera,
-                  lengths: np.ndarray, foot_height: float) -> np.ndarray:
+                  lengths: np.ndarray, config: WarpConfig = WarpConfig()) -> np.ndarray:
     """One person's pose (22, 3) moved onto a sketched keypose: uv (22, 2) where mask (22,) is
-    True; `lengths` (22,) the bone lengths to keep. Unsketched joints ride rigidly on their parent;
-    the figure is grounded by sliding along the viewing direction (not for a level camera)."""
-    back = camera.basis()[2]
+    True; `lengths` (22,) the bone lengths to keep. Unsketched joints ride rigidly on their parent.
+
+    Each sketched joint goes to its sketch point; what is left is its depth along the camera
+    ray (the viewing direction: the sketch camera is orthographic). Least squares chooses the
+    depths: every bone keeps the depth difference it has in the generated pose, every foot the
+    generated pose stands on (within `stance_tolerance` of its lower foot) stands on the ground,
+    and, weakly, every bone keeps its length. Bone lengths alone decide little: a bone near the
+    sketch plane 1 cm shorter than drawn is sqrt(2 L dL) deep, 10 cm for a thigh, and the
+    decoder's bones are ~3% off. With a level camera the ground fixes no depth; the generated
+    depths stay."""
+    right, up, back = camera.basis()
+    origin = np.asarray(camera.target) + uv[:, :1] * right + uv[:, 1:2] * up          # (22, 3) on the rays
+    depth = (joints - origin) @ back                                                 # (22,) generated
+    sketched = np.flatnonzero(mask)
+    at = np.full(NUM_JOINTS, -1)
+    at[sketched] = np.arange(len(sketched))
+    child = np.array([j for j in sketched if PARENTS[j] >= 0 and mask[PARENTS[j]]], int)
+    parent = np.array([PARENTS[j] for j in child], int)
+    feet = joints[list(FEET), 1]
+    standing = np.array([f for f, y in zip(FEET, feet) if mask[f] and y - feet.min() < config.stance_tolerance
+                         and abs(back[1]) > LEVEL], int)
+
+    def residuals(change: np.ndarray) -> np.ndarray:               # change: (S,) depth per sketched joint
+        s = depth[sketched] + change
+        points = origin[sketched] + s[:, None] * back
+        bones = np.linalg.norm(points[at[child]] - points[at[parent]], axis=-1) - lengths[child]
+        return np.concatenate([config.depth_anchor * change,
+                               change[at[child]] - change[at[parent]],
+                               config.ground_weight * (points[at[standing], 1] - config.foot_height),
+                               config.bone_weight * bones])
+
+    change = least_squares(residuals, np.zeros(len(sketched))).x if len(sketched) else np.zeros(0)
     out = joints.copy()
     for j in range(NUM_JOINTS):
-        p = PARENTS[j]
-        if not mask[j]:
-            out[j] = joints[j] if p < 0 else out[p] + joints[j] - joints[p]
-            continue
-        origin, s_now = _ray_depth(camera, uv[j], joints[j])
-        if p < 0:  # the pelvis keeps its height; a level camera keeps its depth instead
-            s = (joints[j, 1] - origin[1]) / back[1] if abs(back[1]) > LEVEL else s_now
-            out[j] = origin + s * back
-            continue
-        # |origin + s back - parent| = length: a quadratic in s; the root nearer the pose wins.
-        d = origin - out[p]
-        half_b, c = d @ back, d @ d - lengths[j] ** 2
-        disc = half_b ** 2 - c
-        if disc < 0:  # the sketched bone is longer than the bone: point it at the ray's nearest point
-            target = origin - half_b * back
-            out[j] = out[p] + lengths[j] * (target - out[p]) / max(np.linalg.norm(target - out[p]), 1e-9)
-            continue
-        roots = -half_b + np.array([-1.0, 1.0]) * np.sqrt(disc)
-        out[j] = origin + roots[np.argmin(np.abs(roots - s_now))] * back
-    if abs(back[1]) > LEVEL:
-        out += _grounding_height(out, foot_height) / back[1] * back
+        if mask[j]:
+            out[j] = origin[j] + (depth[j] + change[at[j]]) * back
+        elif PARENTS[j] >= 0:
+            out[j] = out[PARENTS[j]] + joints[j] - joints[PARENTS[j]]
+    if abs(back[1]) > LEVEL:   # the lower foot exactly on the ground: a slide along the ray keeps the sketch
+        out += _grounding_height(out, config.foot_height) / back[1] * back
     return out
-
-
-def spread(n: int, keys: list[int], values: np.ndarray, falloff: int) -> np.ndarray:
-    """Offsets at sorted key frames, values (K, ...), spread over n frames -> (n, ...): linear
-    between keys, fading to zero over `falloff` frames (smoothstep) before the first and after
-    the last."""
-    frames = np.arange(n)
-    keys_arr = np.asarray(keys, float)
-    flat = values.reshape(len(keys), -1)
-    out = np.stack([np.interp(frames, keys_arr, flat[:, i]) for i in range(flat.shape[1])], -1)
-    gap = np.maximum(keys_arr[0] - frames, frames - keys_arr[-1]).clip(min=0)
-    return (out * smoothstep(1.0 - gap / max(falloff, 1))[:, None]).reshape((n,) + values.shape[1:])
 
 
 def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
@@ -140,10 +142,10 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
                       key=lambda k: k.frame)
         if not keys:
             continue
-        lengths = np.linalg.norm(offsets[h], axis=-1)
         frames = [k.frame for k in keys]
-        posed = np.stack([solve_keypose(joints[k.frame, h], k.points, k.mask, storyboard.camera, lengths,
-                                        config.foot_height) for k in keys])      # (K, 22, 3)
+        lengths = np.linalg.norm(offsets[h], axis=-1)
+        posed = np.stack([solve_keypose(joints[k.frame, h], k.points, k.mask, storyboard.camera, lengths, config)
+                          for k in keys])                                        # (K, 22, 3)
         body = joints[:, h] - joints[:, h, PELVIS:PELVIS + 1]                     # (N, 22, 3) from the pelvis
         hips = joints[:, h, L_HIP] - joints[:, h, R_HIP]
         turn = yaw_matrix(heading_of(np.cross(hips, UP)))                         # (N, 3, 3) body -> world
@@ -178,5 +180,8 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig 
             shift = gaussian_filter1d(lifted - pelvis, config.path_smoothing, axis=0, mode="nearest")
             # The span's offsets, held at its ends and faded out beyond them.
             full = spread(n, list(span), shift, config.falloff)
+            keys = key_frames(storyboard)[h]
+            if keys:   # the keyposes are placed already (depth included): the path moves the rest
+                full -= spread(n, keys, full[keys], config.falloff)
             out[:, h] += full[:, None, :]
     return out
