@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
-from scipy.optimize import least_squares
 
 from ..camera import StoryboardCamera
 from ..controls import closest_on_polyline
@@ -48,6 +47,7 @@ class WarpConfig:
     stance_tolerance: float = 0.08  # m; a generated foot this close to the lower one's height stands
     ground_weight: float = 10.0   # a standing foot's height above foot_height
     bone_weight: float = 1.0      # a bone's length error
+    bone_iterations: int = 3      # Gauss-Newton steps for the (non-linear) bone lengths
     depth_anchor: float = 1e-3    # a joint's depth change: places a figure no standing foot places
 
 
@@ -98,26 +98,34 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     sketched = np.flatnonzero(mask)
     at = np.full(NUM_JOINTS, -1)
     at[sketched] = np.arange(len(sketched))
-    child = np.array([j for j in sketched if PARENTS[j] >= 0 and mask[PARENTS[j]]], int)
-    parent = np.array([PARENTS[j] for j in child], int)
+    child = np.array([at[j] for j in sketched if PARENTS[j] >= 0 and mask[PARENTS[j]]], int)
+    parent = np.array([at[PARENTS[j]] for j in sketched if PARENTS[j] >= 0 and mask[PARENTS[j]]], int)
+    bone_lengths = lengths[sketched[child]]
     feet = joints[list(FEET), 1]
-    standing = np.array([f for f, y in zip(FEET, feet) if mask[f] and y - feet.min() < config.stance_tolerance
-                         and abs(back[1]) > LEVEL], int)
-
-    def residuals(change: np.ndarray) -> np.ndarray:               # change: (S,) depth per sketched joint
-        s = depth[sketched] + change
-        points = origin[sketched] + s[:, None] * back
-        bones = np.linalg.norm(points[at[child]] - points[at[parent]], axis=-1) - lengths[child]
-        return np.concatenate([config.depth_anchor * change,
-                               change[at[child]] - change[at[parent]],
-                               config.ground_weight * (points[at[standing], 1] - config.foot_height),
-                               config.bone_weight * bones])
-
-    change = least_squares(residuals, np.zeros(len(sketched))).x if len(sketched) else np.zeros(0)
+    standing = [at[f] for f, y in zip(FEET, feet) if mask[f] and y - feet.min() < config.stance_tolerance]
+    if abs(back[1]) <= LEVEL:
+        standing = []
+    # Unknowns: each sketched joint's change of depth, x (S,). Linear rows A x = b: the anchor,
+    # the bones' depth differences, the standing feet's heights.
+    eye = np.eye(len(sketched))
+    a = np.concatenate([config.depth_anchor * eye, eye[child] - eye[parent],
+                        config.ground_weight * back[1] * eye[standing]])
+    b = np.concatenate([np.zeros(len(sketched) + len(child)),
+                        config.ground_weight * (config.foot_height - origin[sketched[standing], 1]
+                                                - depth[sketched[standing]] * back[1])])
+    x = np.linalg.lstsq(a, b, rcond=None)[0]
+    for _ in range(config.bone_iterations):   # Gauss-Newton on the bone lengths
+        points = origin[sketched] + (depth[sketched] + x)[:, None] * back
+        bone = points[child] - points[parent]
+        length = np.maximum(np.linalg.norm(bone, axis=-1), 1e-9)
+        slope = config.bone_weight * (bone @ back) / length                     # d length / d x_child
+        jac = np.concatenate([a, slope[:, None] * (eye[child] - eye[parent])])
+        res = np.concatenate([a @ x - b, config.bone_weight * (length - bone_lengths)])
+        x = x - np.linalg.lstsq(jac, res, rcond=None)[0]
     out = joints.copy()
     for j in range(NUM_JOINTS):
         if mask[j]:
-            out[j] = origin[j] + (depth[j] + change[at[j]]) * back
+            out[j] = origin[j] + (depth[j] + x[at[j]]) * back
         elif PARENTS[j] >= 0:
             out[j] = out[PARENTS[j]] + joints[j] - joints[PARENTS[j]]
     if abs(back[1]) > LEVEL:   # the lower foot exactly on the ground: a slide along the ray keeps the sketch
