@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# The recipe behind resources/models/default.pt, sized for a 2-core CPU. Resumable: run it
-# again after an interruption and it continues (finished stages are skipped, a stage in progress
-# resumes from its last checkpoint). Stages that do not depend on each other run side by side,
-# one thread each. Needs ../shared/data/cmu_salsa for the real pairs (skipped if absent).
+# The recipe behind resources/models/default.pt, sized for a 2-core CPU: about five hours there
+# (VQ-VAE ~1 h, teacher ~2.5 h, student ~1.2 h; see the model card). Resumable: run it again after
+# an interruption and it continues (finished stages are skipped, a stage in progress resumes from
+# its last checkpoint), so it also runs in pieces, e.g. `timeout 2h bash scripts/train_default.sh`
+# repeated. Stages that do not depend on each other run side by side, one thread each. Needs
+# ../shared/data/cmu_salsa for the real pairs (skipped if absent).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SALSA=../shared/data/cmu_salsa
@@ -23,8 +25,8 @@ stage() {  # stage NAME STEPS THREADS
 }
 
 stage vqvae 8000 2 & stage encoders 1000 1 & wait
-stage teacher 6500 2 & { stage ctmc 500 1; stage surrogate 300 1; stage potential 400 1; } & wait
-stage student1 3000 2
+stage teacher 14000 2 & { stage ctmc 500 1; stage surrogate 300 1; stage potential 400 1; } & wait
+stage student1 6000 2
 stage student2 600 2
 sketch2colab bundle --runs runs -o resources/models/default.pt "${ARGS[@]:0:2}" "${ARGS[@]:4}" \
     --command "bash scripts/train_default.sh"
