@@ -43,7 +43,8 @@ class FeetConfig:
     # however much it slides (the metric's skate speed is 0.5 m/s).
     stance_speed: float = 1.0        # m/s
     release_speed: float = 2.0       # m/s
-    speed_sigma: float = 1.0         # frames; smoothing of the foot path before its speed
+    speed_sigma: float = 3.0         # frames; smoothing of the foot path before its speed (the
+                                     # decoder's feet jitter by up to 10 cm a frame)
     min_stance_frames: int = 3       # shorter stances are passing touches, left alone
     blend_frames: int = 3            # ramp in and out of a lock, so the foot never pops
     # A gliding foot is re-planted once it has drifted this far, after a step of step_frames.
@@ -158,7 +159,7 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
     for h in range(joints.shape[1]):
         busy = np.ones(len(joints), bool)                                      # left foot off its plant
         for side in range(2):
-            hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
+            toe = FEET[side]
             leg = joints[:, h]                                                 # (N, 22, 3)
             intervals = stance_intervals(leg[:, toe], fps, config, busy if side else None)
             for start, stop in intervals:
@@ -167,18 +168,26 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
                 continue
             goal = _foot_goal(leg[:, toe], intervals, config, keys[h] if keys is not None else ())
             moved = np.any(goal != leg[:, toe], axis=-1)                       # faded out: stays exact
-            leg = leg[moved]
-            foot_offset = leg[:, toe] - leg[:, ankle]
-            upper = np.linalg.norm(leg[:, knee] - leg[:, hip], axis=-1, keepdims=True)
-            lower = np.linalg.norm(leg[:, ankle] - leg[:, knee], axis=-1, keepdims=True)
-            # Bend the knee the way it bends now (off the old hip-ankle line, so a foot planted
-            # ahead cannot flip it backwards); a straight leg bends towards the facing.
-            axis = normalize(leg[:, ankle] - leg[:, hip])
-            bend = leg[:, knee] - leg[:, hip]
-            bend -= np.sum(bend * axis, axis=-1, keepdims=True) * axis
-            facing = np.cross(leg[:, HIPS[0]] - leg[:, HIPS[1]], UP)
-            pole = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-3, bend, facing)
-            new_knee, new_ankle = two_bone_ik(leg[:, hip], goal[moved] - foot_offset, upper, lower, pole)
-            out[moved, h, knee], out[moved, h, ankle] = new_knee, new_ankle
-            out[moved, h, toe] = new_ankle + foot_offset
+            out[moved, h] = reach_with_leg(out[moved, h], side, goal[moved])
+    return out
+
+
+def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.ndarray:
+    """Poses (M, 22, 3) with one leg (side 0 left, 1 right) re-solved from its fixed hip by exact
+    two-bone IK so that the foot joint, riding rigidly on the ankle, reaches foot_goal (M, 3);
+    a goal out of reach straightens the leg towards it -> (M, 22, 3). The knee bends the way it
+    bends now (off the old hip-ankle line, so a foot planted ahead cannot flip it backwards); a
+    straight leg bends towards the facing."""
+    hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
+    out = poses.copy()
+    foot_offset = poses[:, toe] - poses[:, ankle]
+    upper = np.linalg.norm(poses[:, knee] - poses[:, hip], axis=-1, keepdims=True)
+    lower = np.linalg.norm(poses[:, ankle] - poses[:, knee], axis=-1, keepdims=True)
+    axis = normalize(poses[:, ankle] - poses[:, hip])
+    bend = poses[:, knee] - poses[:, hip]
+    bend -= np.sum(bend * axis, axis=-1, keepdims=True) * axis
+    facing = np.cross(poses[:, HIPS[0]] - poses[:, HIPS[1]], UP)
+    pole = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-3, bend, facing)
+    out[:, knee], out[:, ankle] = two_bone_ik(poses[:, hip], foot_goal - foot_offset, upper, lower, pole)
+    out[:, toe] = out[:, ankle] + foot_offset
     return out
