@@ -8,7 +8,7 @@ that keep each person's bone lengths:
    joints freely, so bones stretch a little from frame to frame);
 2. keyposes and pelvis paths, by motion warping (warp.py);
 3. feet standing on the ground, planted while in stance, stepping between plants (feet.py);
-   the keyposes' frames keep the height the warp gave them and plant feet where they stand;
+   a stance holding a keypose's frame plants the foot where the keypose has it;
 4. the object as a rigid body that moves only in the hands that hold it, and the arms reaching
    its grips (or the partner's hand) over every contact span (contacts.py); a holder the grip is
    beyond arm's reach of steps towards it first, before the feet are planted.
@@ -67,7 +67,7 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         joints = step_within_reach(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
     if config.feet:  # before the object: hands that hold it must not move after it is placed
         keys = key_frames(storyboard)   # the warp placed these poses: feet plant where they stand
-        joints = lock_feet(settle_on_ground(joints, config.foot, keys), clip.fps, config.foot, keys)
+        joints = lock_feet(settle_on_ground(joints, config.foot), clip.fps, config.foot, keys)
     kw = {}
     if config.contacts and clip.obj_pose is not None and storyboard.objects:
         pose = hold_object(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)

@@ -25,7 +25,6 @@ from ..rotations import normalize
 from ..skeleton import ANKLES, FEET, JOINT_INDEX
 from ..synth.reach import UP, two_bone_ik
 from ..synth.trajectory import smoothstep
-from .keys import spread
 
 HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
 KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
@@ -53,11 +52,9 @@ class FeetConfig:
     step_height: float = 0.08        # m; peak of a made-up step (the synthesizer's swing lift)
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
     settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
-    key_falloff: int = 12            # frames over which settling fades back in around a key frame
 
 
-def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig(),
-                     keys: Sequence[Sequence[int]] | None = None) -> np.ndarray:
+def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> np.ndarray:
     """Shift each person vertically so that their lower foot stands at config.foot_height.
 
     joints (N, H, 22, 3) -> (N, H, 22, 3). The shift is per person and frame, the same for all
@@ -67,9 +64,6 @@ def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig(),
     joints = np.asarray(joints, float)
     lowest = joints[:, :, list(FEET), 1].min(axis=-1)                           # (N, H)
     shift = gaussian_filter1d(config.foot_height - lowest, config.settle_sigma, axis=0, mode="nearest")
-    for h, frames in enumerate(keys or ()):
-        if frames:
-            shift[:, h] -= spread(len(shift), frames, shift[frames, h], config.key_falloff)
     return joints + shift[:, :, None, None] * UP
 
 
