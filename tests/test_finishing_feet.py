@@ -59,11 +59,15 @@ def test_planted_foot_holds_still_unless_out_of_reach(clean):
     out = lock_feet(joints, FPS)
     held = stance = 0
     for h in range(out.shape[1]):
-        for hip, knee, ankle, foot in zip(HIPS, KNEES, ANKLES, FEET):
+        busy = np.ones(len(joints), bool)                  # as lock_feet: the right foot's steps
+        for hip, knee, ankle, foot in zip(HIPS, KNEES, ANKLES, FEET):   # wait for the left's
+            intervals = stance_intervals(joints[:, h, foot], FPS, busy=None if foot == FEET[0] else busy)
+            for start, stop in intervals:
+                busy[start:stop] = False
             reach = (np.linalg.norm(out[:, h, knee] - out[:, h, hip], axis=-1)
                      + np.linalg.norm(out[:, h, ankle] - out[:, h, knee], axis=-1))
             straight = np.linalg.norm(out[:, h, ankle] - out[:, h, hip], axis=-1) > reach * (1 - 1e-5)
-            for start, stop in stance_intervals(joints[:, h, foot], FPS):
+            for start, stop in intervals:
                 pinned = out[start:stop, h, foot][~straight[start:stop]]
                 if len(pinned):
                     assert np.ptp(pinned[:, [0, 2]], axis=0).max() < 1e-9

@@ -68,10 +68,12 @@ def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> n
 
 
 def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
-                     busy: np.ndarray | None = None) -> list[tuple[int, int]]:
+                     busy: np.ndarray | None = None, keys: Sequence[int] = ()) -> list[tuple[int, int]]:
     """Stance intervals [start, stop) of one foot's path (N, 3), in time order. `busy` (N,) bool
     marks frames in which the other foot is off its plant: a made-up step waits for it to land
-    (up to step_frames), so that a gliding person walks rather than hops."""
+    (up to step_frames), so that a gliding person walks rather than hops. A stance holding one of
+    the key frames `keys` has a plant of its own around the key, while the foot is within half
+    of max_drift of where it is at the key (lock_feet plants it there)."""
     low = foot[:, 1] < config.stance_height
     if len(foot) > 1:
         path = gaussian_filter1d(foot, config.speed_sigma, axis=0, mode="nearest")
@@ -79,6 +81,12 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
     else:
         speed = np.zeros(len(foot))
     strong, weak = low & (speed < config.stance_speed), low & (speed < config.release_speed)
+    if busy is not None:   # a short gap while the other foot is off its plant too would be a hop
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], weak.astype(int), [0]])))
+        for stop, start in zip(edges[1:-1:2], edges[2::2]):
+            if (start - stop <= config.max_step_frames and busy[stop:start].all()
+                    and foot[stop:start, 1].max() < config.step_height):
+                weak[stop:start] = True
     edges = np.flatnonzero(np.diff(np.concatenate([[0], weak.astype(int), [0]])))
     out = []
     for start, stop in zip(edges[::2], edges[1::2]):
@@ -86,16 +94,36 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
         if stop - start < config.min_stance_frames or not strong[start:stop].any():
             continue
         while start < stop:                      # cut a gliding stance into plants and steps
-            drift = np.linalg.norm(foot[start:stop, [0, 2]] - foot[start, [0, 2]], axis=-1)
-            end = start + int(np.argmax(drift > config.max_drift)) if drift.max() > config.max_drift else stop
-            if busy is not None:
-                end = next((e for e in range(end, min(end + config.step_frames, stop) + 1)
-                            if not busy[e:e + config.step_frames].any()), end)
+            key = next((k for k in keys if start <= k < stop), None)
+            if key is None:
+                drift = np.linalg.norm(foot[start:stop, [0, 2]] - foot[start, [0, 2]], axis=-1)
+                end = start + int(np.argmax(drift > config.max_drift)) if drift.max() > config.max_drift else stop
+            else:   # the key's plant, where the key has the foot, lasts while the foot is near it
+                near = np.linalg.norm(foot[start:stop, [0, 2]] - foot[key, [0, 2]], axis=-1) <= config.max_drift / 2
+                far = np.flatnonzero(~near) + start
+                first = max(far[far < key], default=start - 1) + 1
+                end = min(far[far > key], default=stop)
+                # A plant of its own before it, if there is room for it and a step into the key's.
+                lift = _free_step(busy, first - config.step_frames, start + config.min_stance_frames,
+                                  key - config.step_frames, config.step_frames)
+                if lift is not None:
+                    out.append((int(start), int(lift)))
+                    start = lift + config.step_frames
+            end = _free_step(busy, end, start + config.min_stance_frames, stop, config.step_frames, end)
             if stop - end < config.step_frames + config.min_stance_frames:
                 end = stop                       # no room for another plant: hold this one
             out.append((int(start), int(end)))
             start = end + config.step_frames
     return out
+
+
+def _free_step(busy: np.ndarray | None, preferred: int, first: int, last: int, frames: int,
+               default: int | None = None) -> int | None:
+    """The frame in [first, last] nearest `preferred` (the later of two) at which a step of
+    `frames` frames can start while the other foot stands (busy (N,) bool: it is off its plant);
+    `default` if there is none."""
+    order = sorted(range(first, last + 1), key=lambda e: (abs(e - preferred), -e))
+    return next((e for e in order if busy is None or not busy[e:e + frames].any()), default)
 
 
 def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetConfig,
@@ -155,12 +183,13 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
         for side in range(2):
             toe = FEET[side]
             leg = joints[:, h]                                                 # (N, 22, 3)
-            intervals = stance_intervals(leg[:, toe], fps, config, busy if side else None)
+            held = keys[h] if keys is not None else ()
+            intervals = stance_intervals(leg[:, toe], fps, config, busy if side else None, held)
             for start, stop in intervals:
                 busy[start:stop] = False
             if not intervals:
                 continue
-            goal = _foot_goal(leg[:, toe], intervals, config, keys[h] if keys is not None else ())
+            goal = _foot_goal(leg[:, toe], intervals, config, held)
             moved = np.any(goal != leg[:, toe], axis=-1)                       # faded out: stays exact
             out[moved, h] = reach_with_leg(out[moved, h], side, goal[moved])
     return out
