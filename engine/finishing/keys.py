@@ -24,3 +24,9 @@ def spread(n: int, keys: list[int], values: np.ndarray, falloff: int) -> np.ndar
     out = np.stack([np.interp(frames, keys_arr, flat[:, i]) for i in range(flat.shape[1])], -1)
     gap = np.maximum(keys_arr[0] - frames, frames - keys_arr[-1]).clip(min=0)
     return (out * smoothstep(1.0 - gap / max(falloff, 1))[:, None]).reshape((n,) + values.shape[1:])
+
+
+def closeness_to_keys(n: int, keys: list[int], falloff: int) -> np.ndarray:
+    """(n,) weights: 1 at the key frames, easing to 0 over `falloff` frames from the nearest."""
+    gap = np.min(np.abs(np.arange(n)[:, None] - np.asarray(keys)[None]), axis=1)
+    return smoothstep(np.clip(1.0 - gap / max(falloff, 1), 0.0, 1.0))

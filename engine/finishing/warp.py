@@ -29,7 +29,7 @@ from ..skeleton import FEET, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematic
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
 from .feet import reach_with_leg
-from .keys import key_frames, spread
+from .keys import closeness_to_keys, key_frames, spread
 
 PELVIS, L_HIP, R_HIP = JOINT_INDEX["pelvis"], JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]
 LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera is too level to
@@ -141,8 +141,8 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
 
     The offsets spread between keys are joint displacements relative to the pelvis, in the
     body's own (heading) frame, so they turn with the body; the skeleton is then refitted, and
-    the legs reach for the displaced feet (the solved keypose's bones are not quite the
-    skeleton's, and a refit from the hips put feet 5 cm under or over the ground). Local
+    around the keys the legs reach for the displaced feet (the solved keypose's bones are not
+    quite the skeleton's, and a refit from the hips put feet 5 cm under or over the ground). Local
     rotation offsets would be the textbook choice, but a solved keypose often tilts the IK's
     pelvis frame by 60 degrees or more and the hips back by as much; half of each, between keys,
     folds the legs up off the ground (a carrier crawled through the let_go example)."""
@@ -165,8 +165,12 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         root = joints[:, h, PELVIS] + spread(n, frames, posed[:, PELVIS] - joints[frames, h, PELVIS], config.falloff)
         target = root[:, None] + body + np.einsum("nij,npj->npi", turn, spread(n, frames, local, config.falloff))
         out[:, h] = forward_kinematics(root, inverse_kinematics(target, offsets[h]), offsets[h])
-        for side, foot in enumerate(FEET):   # the refit moved the feet (bones differ from the fit's)
-            out[:, h] = reach_with_leg(out[:, h], side, target[:, foot])
+        # The refit moved the feet (a keypose's solved bones are not quite the skeleton's): around
+        # the keys the legs reach for the warped feet. Further out the refit's own legs stay
+        # (reaching all along made the steps between keys less natural: FID 0.27 -> 0.40).
+        near = closeness_to_keys(n, frames, config.falloff)[:, None]
+        for side, foot in enumerate(FEET):
+            out[:, h] = reach_with_leg(out[:, h], side, out[:, h, foot] + near * (target[:, foot] - out[:, h, foot]))
     return out
 
 
