@@ -99,9 +99,8 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     sketched = np.flatnonzero(mask)
     at = np.full(NUM_JOINTS, -1)
     at[sketched] = np.arange(len(sketched))
-    child = np.array([at[j] for j in sketched if PARENTS[j] >= 0 and mask[PARENTS[j]]], int)
-    parent = np.array([at[PARENTS[j]] for j in sketched if PARENTS[j] >= 0 and mask[PARENTS[j]]], int)
-    bone_lengths = lengths[sketched[child]]
+    bones = np.array([j for j in sketched if PARENTS[j] >= 0 and mask[PARENTS[j]]], int)
+    child, parent, bone_lengths = at[bones], at[np.asarray(PARENTS)[bones]], lengths[bones]
     feet = joints[list(FEET), 1]
     standing = [at[f] for f, y in zip(FEET, feet) if mask[f] and y - feet.min() < config.stance_tolerance]
     if abs(back[1]) <= LEVEL:
