@@ -170,7 +170,8 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
     """Pin each foot during its stance intervals and re-solve the leg from the hip.
 
     joints (N, H, 22, 3) -> (N, H, 22, 3); only knees, ankles and feet move. During a stance the
-    foot joint holds the interval's mean horizontal position at config.foot_height (lift-off and
+    foot joint holds the interval's mean horizontal position, or where it is at a key frame of
+    keys[h] (each person's keypose frames) in the stance, at config.foot_height (lift-off and
     touch-down frames keep their height); around it the foot eases in and out over
     config.blend_frames, or steps to the next plant. The knee bends the way it already bent
     (towards the person's facing when the leg was straight); a goal out of reach straightens
