@@ -110,6 +110,15 @@ def test_a_stance_holding_a_key_frame_plants_the_foot_where_the_key_has_it(clean
     assert pinned >= 2
 
 
+def test_a_body_too_tall_for_its_planted_legs_crouches_until_the_feet_reach_the_ground():
+    """Straight legs 2 cm too short for the ground: without the crouch the planted feet hover."""
+    joints = settle_on_ground(np.repeat(rest_pose()[None, None], 40, 0)) + np.array([0.0, 0.02, 0.0])
+    out = lock_feet(joints, FPS)
+    np.testing.assert_allclose(out[:, 0, list(FEET), 1], FeetConfig().foot_height, atol=1e-3)
+    assert 0.015 < float(np.max(joints[:, 0, 0, 1] - out[:, 0, 0, 1])) <= FeetConfig().max_crouch
+    assert np.abs(bone_lengths(out) - bone_lengths(joints)).max() < 1e-9
+
+
 def test_good_motion_is_left_alone(clean):
     for name, joints in clean.items():
         out = finish(joints)

@@ -52,6 +52,7 @@ class FeetConfig:
     step_height: float = 0.08        # m; peak of a made-up step (the synthesizer's swing lift)
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
     settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
+    max_crouch: float = 0.1          # m; most a body lowers so its legs reach their plants
 
 
 def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> np.ndarray:
@@ -169,31 +170,50 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
               keys: Sequence[Sequence[int]] | None = None) -> np.ndarray:
     """Pin each foot during its stance intervals and re-solve the leg from the hip.
 
-    joints (N, H, 22, 3) -> (N, H, 22, 3); only knees, ankles and feet move. During a stance the
+    joints (N, H, 22, 3) -> (N, H, 22, 3); knees, ankles and feet move, and a body standing too
+    tall for its planted legs lowers as a whole (at most config.max_crouch). During a stance the
     foot joint holds the interval's mean horizontal position, or where it is at a key frame of
     keys[h] (each person's keypose frames) in the stance, at config.foot_height (lift-off and
     touch-down frames keep their height); around it the foot eases in and out over
     config.blend_frames, or steps to the next plant. The knee bends the way it already bent
     (towards the person's facing when the leg was straight); a goal out of reach straightens
-    the leg towards it. Call after `settle_on_ground`.
+    the leg towards it (after the crouch, only horizontally). Call after `settle_on_ground`.
     """
     joints = np.asarray(joints, float)
     out = joints.copy()
     for h in range(joints.shape[1]):
+        pose = joints[:, h]                                                    # (N, 22, 3)
+        held = keys[h] if keys is not None else ()
         busy = np.ones(len(joints), bool)                                      # left foot off its plant
+        goals = []
         for side in range(2):
-            toe = FEET[side]
-            leg = joints[:, h]                                                 # (N, 22, 3)
-            held = keys[h] if keys is not None else ()
-            intervals = stance_intervals(leg[:, toe], fps, config, busy if side else None, held)
+            intervals = stance_intervals(pose[:, FEET[side]], fps, config, busy if side else None, held)
             for start, stop in intervals:
                 busy[start:stop] = False
-            if not intervals:
-                continue
-            goal = _foot_goal(leg[:, toe], intervals, config, held)
-            moved = np.any(goal != leg[:, toe], axis=-1)                       # faded out: stays exact
+            goals.append(_foot_goal(pose[:, FEET[side]], intervals, config, held) if intervals
+                         else pose[:, FEET[side]])
+        crouch = _crouch(pose, goals, config)
+        out[:, h] -= crouch[:, None, None] * UP
+        for side, goal in enumerate(goals):                # a foot the crouch moved goes back
+            moved = np.any(goal != pose[:, FEET[side]], axis=-1) | (crouch > 0)   # the rest stays exact
             out[moved, h] = reach_with_leg(out[moved, h], side, goal[moved])
     return out
+
+
+def _crouch(pose: np.ndarray, goals: list[np.ndarray], config: FeetConfig) -> np.ndarray:
+    """How far (N,) a person (pose (N, 22, 3)) lowers so that its legs reach their foot goals
+    (each (N, 3)): a body standing taller than its planted legs would straighten them
+    and lift the feet off the ground. At most config.max_crouch; smoothed, so it never bobs."""
+    need = np.zeros(len(pose))
+    for side, goal in enumerate(goals):
+        hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
+        length = 0.995 * (np.linalg.norm(pose[:, knee] - pose[:, hip], axis=-1)
+                          + np.linalg.norm(pose[:, ankle] - pose[:, knee], axis=-1))
+        reach = goal - (pose[:, toe] - pose[:, ankle]) - pose[:, hip]          # hip -> ankle goal
+        across = np.linalg.norm(reach[:, [0, 2]], axis=-1)
+        need = np.maximum(need, -reach[:, 1] - np.sqrt(np.maximum(length ** 2 - across ** 2, 0.0)))
+    need = np.clip(need, 0.0, config.max_crouch)
+    return gaussian_filter1d(maximum_filter1d(need, 5, mode="nearest"), 1.5, mode="nearest")
 
 
 def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.ndarray:
