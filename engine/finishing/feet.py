@@ -25,6 +25,7 @@ from ..rotations import normalize
 from ..skeleton import ANKLES, FEET, JOINT_INDEX
 from ..synth.reach import UP, two_bone_ik
 from ..synth.trajectory import smoothstep
+from .keys import closeness_to_keys
 
 HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
 KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
@@ -171,7 +172,8 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
     """Pin each foot during its stance intervals and re-solve the leg from the hip.
 
     joints (N, H, 22, 3) -> (N, H, 22, 3); knees, ankles and feet move, and a body standing too
-    tall for its planted legs lowers as a whole (at most config.max_crouch). During a stance the
+    tall for its planted legs lowers as a whole (at most config.max_crouch; not at the key
+    frames, whose legs the warp made reach). During a stance the
     foot joint holds the interval's mean horizontal position, or where it is at a key frame of
     keys[h] (each person's keypose frames) in the stance, at config.foot_height (lift-off and
     touch-down frames keep their height); around it the foot eases in and out over
@@ -193,6 +195,8 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
             goals.append(_foot_goal(pose[:, FEET[side]], intervals, config, held) if intervals
                          else pose[:, FEET[side]])
         crouch = _crouch(pose, goals, config)
+        if held:   # the keyposes stand as the warp placed them (their legs reach already)
+            crouch *= 1.0 - closeness_to_keys(len(pose), list(held), config.blend_frames)
         out[:, h] -= crouch[:, None, None] * UP
         for side, goal in enumerate(goals):                # a foot the crouch moved goes back
             moved = np.any(goal != pose[:, FEET[side]], axis=-1) | (crouch > 0)   # the rest stays exact
