@@ -110,6 +110,20 @@ def test_a_stance_holding_a_key_frame_plants_the_foot_where_the_key_has_it(clean
     assert pinned >= 2
 
 
+def test_a_glide_before_a_key_is_cut_into_plants_too():
+    """A foot gliding 1.5 m along the floor with a key frame near the end: the plant holding the
+    key is the key's, and the glide before it is cut into plants of at most max_drift (one
+    plant over all of it put the foot 0.6 m ahead of the body: a lunge)."""
+    n, config = 40, FeetConfig()
+    foot = np.zeros((n, 3))
+    foot[:, 0] = np.linspace(0.0, 1.5, n)
+    foot[:, 1] = config.foot_height
+    intervals = stance_intervals(foot, FPS, config, keys=[35])
+    assert any(start <= 35 < stop for start, stop in intervals)
+    for start, stop in intervals:
+        assert np.ptp(foot[start:stop, 0]) <= config.max_drift + 1e-9
+
+
 def test_a_body_too_tall_for_its_planted_legs_crouches_until_the_feet_reach_the_ground():
     """Straight legs 2 cm too short for the ground: without the crouch the planted feet hover."""
     joints = settle_on_ground(np.repeat(rest_pose()[None, None], 40, 0)) + np.array([0.0, 0.02, 0.0])

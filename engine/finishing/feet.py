@@ -97,22 +97,22 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
             continue
         while start < stop:                      # cut a gliding stance into plants and steps
             key = next((k for k in keys if start <= k < stop), None)
-            if key is None:
-                drift = np.linalg.norm(foot[start:stop, [0, 2]] - foot[start, [0, 2]], axis=-1)
-                end = start + int(np.argmax(drift > config.max_drift)) if drift.max() > config.max_drift else stop
-            else:   # the key's plant, where the key has the foot, lasts while the foot is near it
+            lift = None                          # where a step into a key's plant starts
+            if key is not None:   # the key's plant, where the key has the foot, lasts while it is near
                 near = np.linalg.norm(foot[start:stop, [0, 2]] - foot[key, [0, 2]], axis=-1) <= config.max_drift / 2
                 far = np.flatnonzero(~near) + start
                 first = max(far[far < key], default=start - 1) + 1
                 end = min(far[far > key], default=stop)
-                # A plant of its own before it, if there is room for it and a step into the key's.
-                lift = _free_step(busy, first - config.step_frames, start + config.min_stance_frames,
-                                  key - config.step_frames, config.step_frames)
-                if lift is not None:
-                    out.append((int(start), int(lift)))
-                    start = lift + config.step_frames
-            end = _free_step(busy, end, start + config.min_stance_frames, stop, config.step_frames, end)
-            if stop - end < config.step_frames + config.min_stance_frames:
+                if first - start >= config.step_frames + config.min_stance_frames:   # plants before it
+                    lift = _free_step(busy, first - config.step_frames, start + config.min_stance_frames,
+                                      key - config.step_frames, config.step_frames)
+            if key is None or lift is not None:  # a plant of the foot's own, until it drifts
+                until = stop if lift is None else lift
+                drift = np.linalg.norm(foot[start:until, [0, 2]] - foot[start, [0, 2]], axis=-1)
+                end = start + int(np.argmax(drift > config.max_drift)) if drift.max() > config.max_drift else until
+            end = _free_step(busy, end, start + config.min_stance_frames, stop if lift is None else lift,
+                             config.step_frames, end)
+            if lift is None and stop - end < config.step_frames + config.min_stance_frames:
                 end = stop                       # no room for another plant: hold this one
             out.append((int(start), int(end)))
             start = end + config.step_frames
