@@ -72,8 +72,9 @@ def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> n
 def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
                      busy: np.ndarray | None = None, keys: Sequence[int] = ()) -> list[tuple[int, int]]:
     """Stance intervals [start, stop) of one foot's path (N, 3), in time order. `busy` (N,) bool
-    marks frames in which the other foot is off its plant: a made-up step waits for it to land
-    (up to step_frames), so that a gliding person walks rather than hops. A stance holding one of
+    marks frames in which the other foot is off its plant: a made-up step is moved to the nearest
+    frame at which the other foot stands, and a short gap while it is off is held, so that a
+    gliding person walks rather than hops. A stance holding one of
     the key frames `keys` has a plant of its own around the key, while the foot is within half
     of max_drift of where it is at the key (lock_feet plants it there)."""
     low = foot[:, 1] < config.stance_height
