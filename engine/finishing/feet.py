@@ -197,7 +197,7 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
                          else pose[:, FEET[side]])
         crouch = _crouch(pose, goals, config)
         if held:   # the keyposes stand as the warp placed them (their legs reach already)
-            crouch *= 1.0 - closeness_to_keys(len(pose), list(held), config.blend_frames)
+            crouch *= 1.0 - closeness_to_keys(len(pose), held, config.blend_frames)
         out[:, h] -= crouch[:, None, None] * UP
         for side, goal in enumerate(goals):                # a foot the crouch moved goes back
             moved = np.any(goal != pose[:, FEET[side]], axis=-1) | (crouch > 0)   # the rest stays exact
