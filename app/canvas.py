@@ -14,7 +14,7 @@ from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPainterPath, 
 from PySide6.QtWidgets import QWidget
 
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
-from engine.storyboard import Contact, ObjectPath, Trajectory
+from engine.storyboard import SKETCH_LIMIT_M, Contact, ObjectPath, Trajectory
 
 from . import commands as cmd
 from .document import OBJECT_PATH, Document
@@ -72,10 +72,15 @@ class SketchCanvas(QWidget):
         return centre + (uv - self.pan) * np.array([self.zoom, -self.zoom])
 
     def to_uv(self, px) -> np.ndarray:
-        """Widget pixels (..., 2) -> sketch points (..., 2) metres."""
+        """Widget pixels (..., 2) -> sketch points (..., 2) metres, inside the storyboard's limits
+        (with room for a pose or outline placed at the edge), so that every save loads again."""
         px = np.asarray(px, float)
         centre = np.array([self.width() / 2, self.height() / 2])
-        return self.pan + (px - centre) / np.array([self.zoom, -self.zoom])
+        uv = self.pan + (px - centre) / np.array([self.zoom, -self.zoom])
+        return np.clip(uv, -SKETCH_LIMIT_M + 5.0, SKETCH_LIMIT_M - 5.0)
+
+    def _set_pan(self, pan) -> None:
+        self.pan = np.clip(pan, -SKETCH_LIMIT_M / 2, SKETCH_LIMIT_M / 2)
 
     def frame_sketch(self) -> None:
         """Zoom and pan so that every keypose, path and object outline is in view (F)."""
@@ -246,7 +251,7 @@ class SketchCanvas(QWidget):
             return
         px = np.array([event.position().x(), event.position().y()])
         if g.kind == "pan":
-            self.pan = self.pan - (px - g.points[-1]) / np.array([self.zoom, -self.zoom])
+            self._set_pan(self.pan - (px - g.points[-1]) / np.array([self.zoom, -self.zoom]))
             g.points[-1] = px
         elif g.kind in ("joint", "rect", "move_object"):
             g.points[1:] = [self.to_uv(px)]
@@ -266,7 +271,7 @@ class SketchCanvas(QWidget):
         px = np.array([event.position().x(), event.position().y()])
         before = self.to_uv(px)
         self.zoom = float(np.clip(self.zoom * 1.0015 ** event.angleDelta().y(), 20.0, 2000.0))
-        self.pan = self.pan + before - self.to_uv(px)
+        self._set_pan(self.pan + before - self.to_uv(px))
         self.update()
 
     # ---- tools: press ------------------------------------------------------------------------

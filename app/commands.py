@@ -230,6 +230,24 @@ class SetObjectSpec(StoryboardCommand):
         sb.objects[sb.object_index(self._object)].spec = ObjectSpec(self._kind, self._size)
 
 
+# ---- timing --------------------------------------------------------------------------------------
+class SetTiming(StoryboardCommand):
+    """A new frame rate (every key and span keeps its time) and then a new length in frames (what
+    starts past the end goes; spans end there). length None: as long in time as before."""
+    touches = ("fps", "length", "keyposes", "trajectories", "object_keys", "object_paths", "contacts")
+
+    def __init__(self, document, fps: float, length: int | None = None):
+        super().__init__(document, "Change frame rate" if length is None else "Change length")
+        self._fps, self._length = fps, length
+
+    def apply(self, sb):
+        timed = sb.retimed(self._fps)
+        if self._length is not None:
+            timed = timed.cut_to(self._length)
+        for name in self.touches:
+            setattr(sb, name, getattr(timed, name))
+
+
 # ---- contacts ------------------------------------------------------------------------------------
 class AddContact(StoryboardCommand):
     touches = ("contacts",)

@@ -1,16 +1,18 @@
-"""The properties panel: selection (agent, joint), the selected object's type and size, the
-contact list, and the generation settings with a picker among the generated variations.
+"""The properties panel: the clip's length and frame rate, selection (agent, joint), the selected
+object's type and size, the contact list, and the generation settings with a picker among the
+generated variations.
 It reads the document on every change and writes back through setters and commands."""
 from __future__ import annotations
 
 from dataclasses import replace
 
 from PySide6.QtCore import Signal
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox,
-                               QHBoxLayout, QListWidget, QPushButton, QSpinBox, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout,
+                               QLabel, QListWidget, QPushButton, QSpinBox, QVBoxLayout, QWidget)
 
 from engine.objects import DEFAULT_SIZES, OBJECT_TYPES
 from engine.skeleton import JOINT_NAMES
+from engine.storyboard import MAX_SECONDS
 
 from . import commands as cmd
 from .document import OBJECT_PATH, Document
@@ -28,6 +30,20 @@ class PropertiesPanel(QWidget):
         self._doc = document
         layout = QVBoxLayout(self)
         layout.setContentsMargins(6, 6, 6, 6)
+
+        box = QGroupBox("Clip")
+        form = QFormLayout(box)
+        self.frames = QSpinBox()
+        self.frames.setSuffix(" frames")
+        self.fps = self._spin(1.0, 240.0, 1.0, 2, " fps")
+        self.fps.setToolTip("A new frame rate keeps every key, path and contact at its time")
+        self.duration = QLabel()
+        timing = QHBoxLayout()
+        timing.addWidget(self.frames)
+        timing.addWidget(self.fps)
+        form.addRow("Length", timing)
+        form.addRow("", self.duration)
+        layout.addWidget(box)
 
         box = QGroupBox("Selection")
         form = QFormLayout(box)
@@ -94,6 +110,8 @@ class PropertiesPanel(QWidget):
         layout.addWidget(box)
         layout.addStretch(1)
 
+        self.frames.editingFinished.connect(self._apply_length)
+        self.fps.editingFinished.connect(self._apply_fps)
         self.agent.activated.connect(lambda i: document.select(agent=self.agent.itemData(i)))
         self.joint.activated.connect(lambda i: document.select(joint=self.joint.itemText(i)))
         self.object.activated.connect(lambda i: document.select(object=self.object.itemData(i)))
@@ -127,11 +145,15 @@ class PropertiesPanel(QWidget):
     # ---- document -> widgets -------------------------------------------------------------------
     def refresh(self) -> None:
         doc, sb, sel = self._doc, self._doc.storyboard, self._doc.selection
-        widgets = [self.agent, self.joint, self.object, self.object_type, *self.size, self.contacts,
+        widgets = [self.frames, self.fps, self.agent, self.joint, self.object, self.object_type, *self.size, self.contacts,
                    self.seed, self.steps, self.cfg, self.use_energy, self.use_ctmc, self.steady, self.variations,
                    self.variation]
         for w in widgets:
             w.blockSignals(True)
+        self.fps.setValue(sb.fps)
+        self.frames.setRange(2, int(MAX_SECONDS * sb.fps))
+        self.frames.setValue(sb.length)
+        self.duration.setText(f"{sb.length / sb.fps:.2f} s")
         self.agent.clear()
         for a in sb.agents:
             self.agent.addItem(a.name or a.id, a.id)
@@ -169,6 +191,16 @@ class PropertiesPanel(QWidget):
             w.blockSignals(False)
 
     # ---- widgets -> document -------------------------------------------------------------------
+    def _apply_length(self):
+        sb = self._doc.storyboard
+        if self.frames.value() != sb.length:
+            self._doc.undo_stack.push(cmd.SetTiming(self._doc, sb.fps, self.frames.value()))
+
+    def _apply_fps(self):
+        fps = round(self.fps.value(), 2)
+        if fps != self._doc.storyboard.fps:
+            self._doc.undo_stack.push(cmd.SetTiming(self._doc, fps))
+
     def _apply_object(self, *_):
         sel = self._doc.selection.object
         if sel is None:

@@ -53,13 +53,14 @@ NUM_HUMANS = 2
 # the others, and its only known defect (a tremble in the first seconds) is easy to trim in
 # evaluation, while takes 06, 07 and 09 have head or shoe errors that would pollute a test set.
 HELD_OUT_SALSA_TAKES = ("60_10/61_10",)
+MODEL_FPS = 20.0   # the models learn motion at this rate; the sampler animates other rates through it
 
 
 @dataclass
 class DatasetConfig:
     window: int = 120                 # frames per item (6 s at 20 fps)
     stride: int = 30                  # frames between window starts within a clip
-    fps: float = 20.0                 # clips at another rate are resampled to this
+    fps: float = MODEL_FPS            # clips at another rate are resampled to this
     min_frames: int = 60              # shorter clips are skipped; longer ones below `window` are padded
     keyframe_range: tuple[int, int] = (2, 6)     # keyframes per storyboard, inclusive
     noise_range: tuple[float, float] = (0.0, 0.8)

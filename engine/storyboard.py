@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -23,6 +23,8 @@ FORMAT = "sketch2colab-storyboard"
 VERSION = 1
 HANDS = ("left", "right")
 AGENT_COLORS = ("#e4572e", "#2e86ab", "#76b041", "#9b5de5")
+SKETCH_LIMIT_M = 100.0   # |u|, |v| and the camera target's coordinates (the schema's "metres")
+MAX_SECONDS = 120.0      # the longest clip the generator is asked for
 
 
 class StoryboardError(ValueError):
@@ -107,6 +109,32 @@ class Storyboard:
 
     def object_index(self, object_id: str) -> int:
         return [o.id for o in self.objects].index(object_id)
+
+    def retimed(self, fps: float) -> "Storyboard":
+        """The same storyboard at another frame rate: every frame moved to the nearest frame at
+        the same time, `length` the fewest frames that last as long (itself at the same rate)."""
+        if abs(fps - self.fps) < 1e-9:
+            return self
+        rate = fps / self.fps
+        length = max(2, math.ceil((self.length - 1) * rate - 1e-9) + 1)
+
+        def at(frame: int) -> int:   # the nearest frame, a half frame later (a last frame stays last)
+            return min(math.floor(frame * rate + 0.5), length - 1)
+
+        return replace(self, fps=fps, length=length,
+                       keyposes=[replace(k, frame=at(k.frame)) for k in self.keyposes],
+                       object_keys=[replace(k, frame=at(k.frame)) for k in self.object_keys],
+                       **{name: [replace(x, start=at(x.start), end=at(x.end)) for x in getattr(self, name)]
+                          for name in ("trajectories", "object_paths", "contacts")})
+
+    def cut_to(self, length: int) -> "Storyboard":
+        """The storyboard over `length` frames: what starts past the new end goes, spans that run
+        past it end there (a longer clip keeps everything)."""
+        last = length - 1
+        spans = {name: [replace(x, end=min(x.end, last)) for x in getattr(self, name) if x.start <= last]
+                 for name in ("trajectories", "object_paths", "contacts")}
+        return replace(self, length=length, keyposes=[k for k in self.keyposes if k.frame <= last],
+                       object_keys=[k for k in self.object_keys if k.frame <= last], **spans)
 
     def keyframes(self) -> list[int]:
         """Sorted frames that carry at least one keypose or object key."""
@@ -205,6 +233,9 @@ class Storyboard:
         agents = _unique([a.id for a in self.agents], "agents")
         objects = _unique([o.id for o in self.objects], "objects")
         n = self.length
+        if n / self.fps > MAX_SECONDS:
+            raise StoryboardError(f"length: {n} frames at {self.fps:g} fps is {n / self.fps:.0f} s; "
+                                  f"clips are at most {MAX_SECONDS:.0f} s")
 
         def frame(where: str, f: int) -> None:
             if not 0 <= f < n:
@@ -311,6 +342,9 @@ def _validate_schema(d) -> None:
         raise StoryboardError(_describe(errors[0]))
 
 
+BOUNDS = {"minimum": "at least", "maximum": "at most", "exclusiveMinimum": "more than"}
+
+
 def _path(parts) -> str:
     out = ""
     for p in parts:
@@ -337,7 +371,12 @@ def _describe(e) -> str:
     if e.validator == "const" and where == "version":
         return f"version: this program reads storyboard version {VERSION}, the file is version {inst!r}"
     if e.validator == "oneOf" and where.startswith("keyposes"):
+        if isinstance(inst, list) and e.context:   # a point, but a bad one: say what is wrong with it
+            return _describe(min(e.context, key=lambda sub: sub.validator == "type"))
         return f"{where}: a joint is either [u, v] or null"
+    if e.validator in BOUNDS and isinstance(inst, (int, float)):
+        unit = " m" if abs(e.validator_value) == SKETCH_LIMIT_M else ""
+        return f"{where}: {inst:g} is out of range ({BOUNDS[e.validator]} {e.validator_value:g}{unit})"
     short = json.dumps(inst)[:40] if not isinstance(inst, (dict, list)) else type(inst).__name__
     return f"{where}: {short} is not valid here ({e.validator} {json.dumps(e.validator_value)[:60]})"
 

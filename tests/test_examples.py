@@ -11,6 +11,7 @@ from engine.generate import generate
 from engine.metrics import adherence
 from engine.models.bundle import load_default
 from engine.sampling.sampler import SamplerConfig
+from engine.skeleton import FEET
 from engine.storyboard import Storyboard
 
 EXAMPLES = sorted(Path("resources/examples").glob("*.json"))
@@ -35,3 +36,20 @@ def test_bundled_example_meets_the_targets(bundle, path):
     assert figures["K2D"] < 0.06 and figures["T2D"] < 0.08
     assert figures["Pen"] < 0.02
     assert figures.get("Anc", 0.0) < 0.05
+
+
+def test_a_walk_sketched_at_30_fps_steps_as_often_as_at_20(bundle):
+    """The model learnt motion at 20 fps; a 30 fps storyboard of the same scene must not come out
+    as the 20 fps motion squeezed into fewer seconds (before: 1.4x the step rate)."""
+    sb = Storyboard.load("resources/examples/carry_table.json")
+
+    def steps_per_second(storyboard):
+        rates = []
+        for seed in (0, 1):
+            clip = generate(storyboard, SamplerConfig(seed=seed), bundle).clips[0]
+            height = clip.joints[:, :, list(FEET), 1]
+            lifts = ((height[1:] > 0.07) & (height[:-1] <= 0.07)).sum()
+            rates.append(lifts / clip.duration / clip.num_humans)
+        return np.mean(rates)
+
+    assert steps_per_second(sb.retimed(30.0)) / steps_per_second(sb) == pytest.approx(1.0, abs=0.2)

@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from engine.finishing import lasting_as_long
 from engine.finishing.feet import HIPS, KNEES, FeetConfig, lock_feet, settle_on_ground, stance_intervals
 from engine.metrics import foot_skate_ratio
 from engine.skeleton import ANKLES, FEET, bone_lengths, rest_pose
@@ -158,3 +159,11 @@ def test_straight_legs_and_unreachable_plants_stay_finite():
     assert np.isfinite(out).all()
     assert not np.allclose(out, joints)                                 # the feet were held back
     assert np.abs(bone_lengths(out) - bone_lengths(joints)).max() < 1e-9
+
+
+def test_durations_last_as_long_at_any_frame_rate():
+    at40 = lasting_as_long(FeetConfig(), 40.0)
+    assert (at40.blend_frames, at40.speed_sigma, at40.max_step_frames) == (6, 6.0, 16)
+    assert at40.stance_speed == FeetConfig().stance_speed and at40.max_drift == FeetConfig().max_drift
+    assert lasting_as_long(FeetConfig(), 20.0) == FeetConfig()
+    assert lasting_as_long(FeetConfig(), 1.0).min_stance_frames == 1      # never below one frame

@@ -115,6 +115,20 @@ def test_one_person_no_object_odd_length(bundle, storyboard):
     assert clip.joints.shape == (61, 1, 22, 3) and clip.obj_pose is None
 
 
+def test_a_storyboard_at_another_frame_rate_is_animated_at_the_models(bundle, storyboard):
+    """The network sees the storyboard's time at MODEL_FPS; everything handed out (previews,
+    phases, the result) is at the storyboard's rate, on its frames."""
+    at30 = storyboard.retimed(30.0)
+    events, result = drain(sample(bundle, at30, SamplerConfig(steps=2)))
+    _, at20 = drain(sample(bundle, storyboard, SamplerConfig(steps=1)))
+    assert events[0].latent.shape[1] in (30, 31)               # 6 s at 20 fps (+ a frame), not 9 s
+    assert events[-1].phase.shape == (at30.length, 3)
+    preview = events[-1].decode()
+    clip = result.clips[0]
+    assert (preview.fps, preview.num_frames) == (clip.fps, clip.num_frames) == (30.0, at30.length)
+    assert adherence(clip, at30)["K2D"] < adherence(at20.clips[0], storyboard)["K2D"] + 0.01
+
+
 def test_requests_it_cannot_serve_fail_clearly(bundle, storyboard):
     three = replace(storyboard, agents=storyboard.agents + [Agent("C")])
     with pytest.raises(SamplerError, match="at most 2 people"):

@@ -64,6 +64,22 @@ def test_chi_mask_and_nu():
     assert all(0 <= nu(k, 7) <= 6 for k in np.linspace(0, 7, 50))
 
 
+def test_retimed_keeps_every_element_at_its_time():
+    sb = Storyboard.from_dict(GOOD)                                   # 60 frames at 20 fps
+    at30 = sb.retimed(30.0)
+    at30.validate()
+    assert (at30.fps, at30.length) == (30.0, 90)                      # frames 0..89: 2.97 s, as 0..59 at 20
+    assert [k.frame for k in at30.keyposes] == [0, 89]
+    assert [(t.start, t.end) for t in at30.trajectories] == [(0, 89)]
+    assert [(c.start, c.end) for c in at30.contacts] == [(15, 60), (68, 75)]
+    assert at30.object_keys[0].frame == 15 and (at30.object_paths[0].start, at30.object_paths[0].end) == (15, 60)
+    assert at30.keyposes[1].points == pytest.approx(sb.keyposes[1].points)
+    back = at30.retimed(20.0)
+    assert [k.frame for k in back.keyposes] == [0, 59] and back.contacts[0].start == 10
+    assert sb.retimed(20.0) is sb
+    assert sb.retimed(24.0).length == 72 and sb.retimed(12.0).length == 37   # never shorter in time
+
+
 def test_controls_resample_strokes_over_their_span():
     c = build_controls(Storyboard.from_dict(GOOD))
     pelvis = c.tr2d[:, 0, JOINT_INDEX["pelvis"]]
@@ -100,7 +116,14 @@ BROKEN = [
     ("objects.0.type", "piano", "objects[0].type"),
     ("keyposes.0.points", [None] * 22, "keyposes[0].points: no joint is placed"),
     ("agents", [{"id": "A"}, {"id": "A"}], "agents[1].id: duplicate id 'A'"),
-    ("length", 1, "length"),
+    ("length", 1, "length: 1 is out of range (at least 2)"),
+    # Numbers no sketch can mean (pixels or millimetres taken for metres, a typo): out of range.
+    ("keyposes.1.points.3", [1e6, 0.5], "keyposes[1].points[3][0]: 1e+06 is out of range (at most 100 m)"),
+    ("trajectories.0.points.1", [0, -250], "trajectories[0].points[1][1]: -250 is out of range (at least -100 m)"),
+    ("camera.target", [0, 0.9, 5000], "camera.target[2]: 5000 is out of range (at most 100 m)"),
+    ("objects.0.size", [0.4, 0.3, 0], "objects[0].size[2]: 0 is out of range (more than 0)"),
+    ("fps", 1000, "fps: 1000 is out of range (at most 240)"),
+    ("length", 3000, "length: 3000 frames at 20 fps is 150 s; clips are at most 120 s"),
 ]
 
 

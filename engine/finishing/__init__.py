@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..clip import MotionClip
+from ..dataset import MODEL_FPS
 from ..rotations import matrix_to_6d
 from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
@@ -29,6 +30,9 @@ from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts
 from .feet import FeetConfig, lock_feet, settle_on_ground
 from .keys import key_frames
 from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
+
+
+TUNED_FPS = MODEL_FPS   # the configs' durations (their DURATIONS fields) are frames at this rate
 
 
 @dataclass
@@ -57,8 +61,20 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
     return np.stack(fixed, 1), np.stack(all_offsets)
 
 
+def lasting_as_long(config, fps: float):
+    """A finishing config whose durations (frames at TUNED_FPS) last as long at `fps` frames per
+    second: a lock blends in over 0.15 s whatever the clip's rate."""
+    scale = fps / TUNED_FPS
+    if scale == 1.0:
+        return config
+    return replace(config, **{name: max(1, round(value * scale)) if isinstance(value, int) else value * scale
+                              for name in config.DURATIONS for value in [getattr(config, name)]})
+
+
 def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig()) -> MotionClip:
     """The clip (people in the storyboard's agent order) with its constraints made exact."""
+    config = replace(config, **{part: lasting_as_long(getattr(config, part), clip.fps)
+                                for part in ("warp", "contact", "foot")})
     joints, offsets = consistent_skeleton(np.asarray(clip.joints, float), storyboard)
     if config.keyposes:
         joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)

@@ -16,6 +16,7 @@ Three steps, run on decoded joint positions (N frames, H people, 22 joints, worl
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -43,6 +44,7 @@ SWIVELS = np.deg2rad(np.arange(-180, 180, 5))  # elbow angles about the shoulder
 
 @dataclass
 class ContactConfig:
+    DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "lift_frames", "smooth_sigma", "reach_smoothing")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
     lift_frames: int = 6           # frames a resting object eases into the holding hands' fit (and,
                                    # at least, a released one slides to its sketched landing place)
@@ -60,10 +62,11 @@ class ContactConfig:
 
 def _anchor_table(storyboard: Storyboard) -> np.ndarray:
     """Every object's local anchors padded to the longest list by repeating its last one:
-    (O, K, 3), K as in engine.controls (flat anchor index o * K + k)."""
+    (O, K, 3), K as in engine.controls (flat anchor index o * K + k). An object without anchors
+    (nothing may hold it) stands in with its centre."""
     k_max = max([len(o.spec.anchors) for o in storyboard.objects] + [1])
-    padded = [np.concatenate([a, np.repeat(a[-1:], k_max - len(a), axis=0)])
-              for a in (o.spec.anchors for o in storyboard.objects)]
+    lists = [o.spec.anchors if len(o.spec.anchors) else np.zeros((1, 3)) for o in storyboard.objects]
+    padded = [np.concatenate([a, np.repeat(a[-1:], k_max - len(a), axis=0)]) for a in lists]
     return np.array(padded).reshape(-1, k_max, 3)
 
 

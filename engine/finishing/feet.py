@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt, gaussian_filter1d, maximum_filter1d
@@ -33,7 +34,9 @@ KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
 
 @dataclass
 class FeetConfig:
-    """Thresholds of the feet finishing; durations in frames, tuned at the project's 20 fps."""
+    """Thresholds of the feet finishing; durations in frames at TUNED_FPS."""
+    DURATIONS: ClassVar[tuple[str, ...]] = ("speed_sigma", "min_stance_frames", "blend_frames", "step_frames",
+                                            "max_step_frames", "settle_sigma", "crouch_window", "crouch_sigma")
     # Foot joint height when standing (the rest skeleton's; EnergyConfig.foot_height).
     foot_height: float = 0.02        # m
     # A foot may be planted while its joint is under this height (metrics' contact height).
@@ -54,6 +57,8 @@ class FeetConfig:
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
     settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
     max_crouch: float = 0.1          # m; most a body lowers so its legs reach their plants
+    crouch_window: int = 5           # frames a crouch is held around its deepest need ...
+    crouch_sigma: float = 1.5        # ... and smoothed over, so it never bobs
 
 
 def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> np.ndarray:
@@ -218,7 +223,8 @@ def _crouch(pose: np.ndarray, goals: list[np.ndarray], config: FeetConfig) -> np
         across = np.linalg.norm(reach[:, [0, 2]], axis=-1)
         need = np.maximum(need, -reach[:, 1] - np.sqrt(np.maximum(length ** 2 - across ** 2, 0.0)))
     need = np.clip(need, 0.0, config.max_crouch)
-    return gaussian_filter1d(maximum_filter1d(need, 5, mode="nearest"), 1.5, mode="nearest")
+    held = maximum_filter1d(need, config.crouch_window, mode="nearest")
+    return gaussian_filter1d(held, config.crouch_sigma, mode="nearest")
 
 
 def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.ndarray:

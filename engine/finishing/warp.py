@@ -19,6 +19,7 @@ each person's bones, FK(joints[:, h, 0], IK(joints[:, h], offsets[h]), offsets[h
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -38,6 +39,7 @@ LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera 
 
 @dataclass
 class WarpConfig:
+    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "path_smoothing")   # frames at TUNED_FPS
     falloff: int = 12             # frames over which an offset fades in before the first key / out after the last
     path_smoothing: float = 4.0   # frames; Gaussian sigma of the per-frame path offsets
     path_passes: int = 2          # smoothing pulls points off the stroke a little; project again

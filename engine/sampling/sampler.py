@@ -20,7 +20,9 @@ Teacher methods (DDPM 1000 steps, DDIM) run the frozen teacher unguided, as the
 "COLLAGE Teacher" baseline. Ablations are flags of the same config.
 
 The model works on fixed slots (2 humans, 1 object); storyboards with fewer are padded and the
-output keeps only the storyboard's agents and objects.
+output keeps only the storyboard's agents and objects. It animates at MODEL_FPS: a storyboard at
+another rate is retimed to it, and the motion comes back at the storyboard's rate (previews,
+phases and result), so that a walk at 30 fps is as fast as at 20.
 """
 from __future__ import annotations
 
@@ -33,8 +35,9 @@ import torch
 
 from ..clip import MotionClip
 from ..controls import build_controls
-from ..dataset import NUM_HUMANS, fixed_controls
+from ..dataset import MODEL_FPS, NUM_HUMANS, fixed_controls
 from ..finishing import finish
+from ..io.resample import resample_clip, resample_linear
 from ..models.encoders import latent_energy
 from ..models.surrogate import exact_latent_gradient, flatten_motion
 from ..models.teacher import ClassifierFreeGuidance, ddim_sample, ddpm_sample
@@ -128,11 +131,12 @@ class _Run:
         self.latent_dim = bundle.config.vqvae.latent_dim
         # An untrained surrogate routes garbage: fall back to exact gradients through the decoder.
         self.surrogate = bundle.surrogate if "surrogate" in bundle.metadata.get("stages", ()) else None
-        self.frames = sb.length
-        self.padded = -(-sb.length // stride) * stride     # the decoder makes multiples of stride
+        model_sb = sb.retimed(MODEL_FPS)                  # frames at the model's rate from here on
+        self.frames = model_sb.length
+        self.padded = -(-self.frames // stride) * stride    # the decoder makes multiples of stride
         self.t_lat = self.padded // stride
         self.generator = torch.Generator().manual_seed(cfg.seed)
-        controls = fixed_controls(build_controls(_padded_storyboard(sb, self.padded)))
+        controls = fixed_controls(build_controls(_padded_storyboard(model_sb, self.padded)))
         self.controls = {name: torch.as_tensor(v)[None].expand(k, *v.shape).contiguous()
                          for name, v in controls.items()}
         enc = bundle.conditioner.encode(self.controls, self.t_lat, 3)
@@ -142,7 +146,7 @@ class _Run:
         self.cond, self.s2d, self.present = cond, enc.s2d, enc.present
         n = self.padded
         self.energy_ctx = EnergyContext.from_storyboard(
-            _padded_storyboard(sb, n), batch=k,
+            _padded_storyboard(model_sb, n), batch=k,
             K3D_hat=enc.lifted.keyposes[:, :, :len(sb.agents)],
             T3D_hat=enc.lifted.trajectories[:, :, :len(sb.agents)])
         self.enabled = TRAJECTORY_ONLY if cfg.trajectory_only else set(ENERGIES)
@@ -239,23 +243,31 @@ class _Run:
                energies: dict[str, float]) -> StepEvent:
         if self.first_step is None:
             self.first_step = time.perf_counter() - self.start
-        z0, phase = z0.clone(), self._phase_array(0)
+        z0, phase = z0.clone(), self._phase(0)
 
         def decode() -> MotionClip:  # the step's state is captured: it may run after later steps
             with torch.no_grad():
                 return self._clip(self._decode(z0), 0, phase)
 
         return StepEvent(step=step, num_steps=num, t=t, latent=z.numpy().copy(), decode=decode,
-                         phase=phase, energies=energies)
+                         phase=self._at_storyboard_rate(phase), energies=energies)
 
-    def _phase_array(self, k: int) -> np.ndarray:
+    def _at_storyboard_rate(self, per_frame: np.ndarray) -> np.ndarray:
+        """(frames at MODEL_FPS, ...) -> (the storyboard's frames, ...), linearly in time."""
+        if self.sb.fps == MODEL_FPS:
+            return per_frame
+        return resample_linear(per_frame, MODEL_FPS, self.sb.fps)[:self.sb.length].astype(per_frame.dtype)
+
+    def _phase(self, k: int) -> np.ndarray:
+        """Variation k's CTMC occupancy (frames at MODEL_FPS, 3); uniform before the first plan."""
         if self.occupancy is None:
             return np.full((self.frames, 3), 1.0 / 3.0, np.float32)
         return self.occupancy[k, :self.frames].numpy().astype(np.float32)
 
     def _clip(self, motion: dict[str, torch.Tensor], k: int, phase: np.ndarray | None = None) -> MotionClip:
-        """Variation k of a decoded motion as a clip of the storyboard's agents and objects
-        (phase (N, 3): the occupancy to give it; None = the current plan's)."""
+        """Variation k of a decoded motion as a clip of the storyboard's agents and objects at
+        the storyboard's frame rate (phase (N, 3) at MODEL_FPS: the occupancy to give it; None =
+        the current plan's)."""
         n, h, o = self.frames, len(self.sb.agents), len(self.sb.objects)
         joints = motion["joints"][k, :n, :h].numpy()
         rot6d = motion["rot6d"][k, :n, :h].numpy()
@@ -265,11 +277,13 @@ class _Run:
                       obj_anchors=motion["obj_anchors"][k, :n, :o].numpy(),
                       obj_type=np.array([ob.spec.type for ob in self.sb.objects]),
                       obj_size=np.array([ob.spec.size for ob in self.sb.objects], np.float32))
-        phase = self._phase_array(k) if phase is None else phase
-        contact = _hand_contact(joints, kw.get("obj_anchors"), phase)
-        return MotionClip(fps=self.sb.fps, joints=_finite(joints), rot6d=_finite(rot6d), phase=phase,
-                          contact=contact, scenario="generated", **{k2: _finite(v) if v.dtype.kind == "f" else v
-                                                                    for k2, v in kw.items()})
+        phase = self._phase(k) if phase is None else phase
+        clip = MotionClip(fps=MODEL_FPS, joints=_finite(joints), rot6d=_finite(rot6d), phase=phase,
+                          scenario="generated", **{k2: _finite(v) if v.dtype.kind == "f" else v
+                                                   for k2, v in kw.items()})
+        if self.sb.fps != MODEL_FPS:
+            clip = resample_clip(clip, self.sb.fps).slice(0, self.sb.length)
+        return replace(clip, contact=_hand_contact(clip.joints, clip.obj_anchors, clip.phase))
 
     def _result(self, z0: torch.Tensor) -> GenerationResult:
         motion = self._decode(z0)

@@ -126,6 +126,26 @@ def test_wheel_zoom_keeps_the_point_under_the_cursor(qtbot, canvas):
     assert canvas.to_uv([200, 150]) == pytest.approx(before)
 
 
+def test_sketching_far_out_stays_inside_what_a_storyboard_may_hold(qtbot, canvas, tmp_path):
+    """Panning and drawing as far as the mouse goes still saves a storyboard that loads again."""
+    from engine.storyboard import SKETCH_LIMIT_M, Storyboard
+    canvas.zoom = 20.0                                        # the widest zoom
+    for _ in range(40):                                       # middle-button drags, 700 px each
+        qtbot.mousePress(canvas, Qt.MiddleButton, pos=QPoint(750, 300))
+        qtbot.mouseMove(canvas, QPoint(50, 300))
+        qtbot.mouseRelease(canvas, Qt.MiddleButton, pos=QPoint(50, 300))
+    assert abs(canvas.pan[0]) <= SKETCH_LIMIT_M
+    doc = canvas._doc
+    doc.set_tool("trajectory")
+    doc.select(agent="A", joint="pelvis")
+    drag(qtbot, canvas, [canvas.to_uv([x, 300]) for x in range(100, 800, 20)])
+    doc.set_tool("keypose")
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=QPoint(790, 300))
+    assert doc.storyboard.trajectories and doc.storyboard.keyposes
+    doc.storyboard.save(tmp_path / "far.json")
+    Storyboard.load(tmp_path / "far.json")
+
+
 def test_labels_stay_inside_the_canvas(canvas):
     from PySide6.QtCore import QPointF, QRectF
     from app.canvas import fit_inside

@@ -174,3 +174,27 @@ def test_the_steady_checkbox_reaches_the_sampler(make_window, monkeypatch):
         with pytest.raises(StopIteration):
             next(stream)
     assert [c.guidance_max_rate for c in seen] == [sampler.STEADY_GUIDANCE_RATE, None]
+
+
+def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window):
+    """Typing a frame rate keeps every key at its time; a shorter length drops what lies past it."""
+    load_sample(window)
+    doc, panel = window.doc, window.properties
+    before = doc.storyboard.to_json()
+    keys = sorted((k.agent, k.frame) for k in doc.storyboard.keyposes)
+    panel.fps.selectAll()
+    qtbot.keyClicks(panel.fps, "30")
+    qtbot.keyClick(panel.fps, Qt.Key_Return)
+    sb = doc.storyboard
+    assert sb.fps == 30.0 and sb.length == 180 and panel.frames.value() == 180
+    assert sorted((k.agent, k.frame) for k in sb.keyposes) == [(a, int(f * 1.5 + 0.5)) for a, f in keys]
+    panel.frames.selectAll()
+    qtbot.keyClicks(panel.frames, "60")
+    qtbot.keyClick(panel.frames, Qt.Key_Return)
+    assert doc.storyboard.length == 60 and doc.frame <= 59
+    assert all(k.frame < 60 for k in doc.storyboard.keyposes)
+    assert all(t.end < 60 for t in doc.storyboard.trajectories) and panel.duration.text() == "2.00 s"
+    doc.storyboard.validate()
+    doc.undo_stack.undo()
+    doc.undo_stack.undo()
+    assert doc.storyboard.to_json() == before and panel.fps.value() == 20.0
