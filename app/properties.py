@@ -145,9 +145,9 @@ class PropertiesPanel(QWidget):
     # ---- document -> widgets -------------------------------------------------------------------
     def refresh(self) -> None:
         doc, sb, sel = self._doc, self._doc.storyboard, self._doc.selection
-        widgets = [self.frames, self.fps, self.agent, self.joint, self.object, self.object_type, *self.size, self.contacts,
-                   self.seed, self.steps, self.cfg, self.use_energy, self.use_ctmc, self.steady, self.variations,
-                   self.variation]
+        widgets = [self.frames, self.fps, self.agent, self.joint, self.object, self.object_type, *self.size,
+                   self.contacts, self.seed, self.steps, self.cfg, self.use_energy, self.use_ctmc, self.steady,
+                   self.variations, self.variation]
         for w in widgets:
             w.blockSignals(True)
         self.fps.setValue(sb.fps)

@@ -72,11 +72,16 @@ def machine() -> dict:
             "python": platform.python_version(), "load_average": [round(x, 2) for x in os.getloadavg()]}
 
 
+# What benchmark runs write: an earlier run's results are not a change to the code measured.
+BENCH_OUTPUTS = ("BENCHMARKS.md", "bench_full", "bench_figures")
+
+
 def git_revision() -> dict:
     def git(*args):
         return subprocess.run(["git", *args], cwd=REPO_ROOT, capture_output=True, text=True).stdout.strip()
     try:
-        return {"commit": git("rev-parse", "HEAD") or "unknown", "dirty": bool(git("status", "--porcelain"))}
+        changed = git("status", "--porcelain", "--", ".", *(f":(exclude){p}" for p in BENCH_OUTPUTS))
+        return {"commit": git("rev-parse", "HEAD") or "unknown", "dirty": bool(changed)}
     except OSError:
         return {"commit": "unknown", "dirty": None}
 
