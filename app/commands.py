@@ -13,7 +13,7 @@ from PySide6.QtGui import QUndoCommand
 
 from engine.objects import DEFAULT_SIZES, ObjectSpec
 from engine.skeleton import MIRROR
-from engine.storyboard import Contact, Keypose, ObjectKey, SceneObject, Storyboard
+from engine.storyboard import SPANS, Contact, Keypose, ObjectKey, SceneObject, Storyboard
 
 
 class StoryboardCommand(QUndoCommand):
@@ -234,7 +234,7 @@ class SetObjectSpec(StoryboardCommand):
 class SetTiming(StoryboardCommand):
     """A new frame rate (every key and span keeps its time) and then a new length in frames (what
     starts past the end goes; spans end there). length None: as long in time as before."""
-    touches = ("fps", "length", "keyposes", "trajectories", "object_keys", "object_paths", "contacts")
+    touches = ("fps", "length", "keyposes", "object_keys", *SPANS)
 
     def __init__(self, document, fps: float, length: int | None = None):
         super().__init__(document, "Change frame rate" if length is None else "Change length")

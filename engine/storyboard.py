@@ -25,6 +25,7 @@ HANDS = ("left", "right")
 AGENT_COLORS = ("#e4572e", "#2e86ab", "#76b041", "#9b5de5")
 SKETCH_LIMIT_M = 100.0   # |u|, |v| and the camera target's coordinates (the schema's "metres")
 MAX_SECONDS = 120.0      # the longest clip the generator is asked for
+SPANS = ("trajectories", "object_paths", "contacts")   # the Storyboard lists with start and end frames
 
 
 class StoryboardError(ValueError):
@@ -125,14 +126,14 @@ class Storyboard:
                        keyposes=[replace(k, frame=at(k.frame)) for k in self.keyposes],
                        object_keys=[replace(k, frame=at(k.frame)) for k in self.object_keys],
                        **{name: [replace(x, start=at(x.start), end=at(x.end)) for x in getattr(self, name)]
-                          for name in ("trajectories", "object_paths", "contacts")})
+                          for name in SPANS})
 
     def cut_to(self, length: int) -> "Storyboard":
         """The storyboard over `length` frames: what starts past the new end goes, spans that run
         past it end there (a longer clip keeps everything)."""
         last = length - 1
         spans = {name: [replace(x, end=min(x.end, last)) for x in getattr(self, name) if x.start <= last]
-                 for name in ("trajectories", "object_paths", "contacts")}
+                 for name in SPANS}
         return replace(self, length=length, keyposes=[k for k in self.keyposes if k.frame <= last],
                        object_keys=[k for k in self.object_keys if k.frame <= last], **spans)
 

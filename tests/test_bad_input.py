@@ -11,9 +11,10 @@ from engine.cli import main
 EXAMPLE = "resources/examples/box_handoff.json"
 
 
-def storyboard(**edit) -> dict:
+def storyboard(*changes) -> dict:
+    """The example as a dict, each change (a function of the dict) applied in place."""
     d = json.loads(open(EXAMPLE).read())
-    for key, change in edit.items():
+    for change in changes:
         change(d)
     return d
 
@@ -40,7 +41,7 @@ def test_contradictory_constraints_give_a_finite_compromise(tmp_path, capsys):
         first = dict(d["keyposes"][0], frame=40)
         d["keyposes"] += [first, dict(first, frame=41, points=[None if p is None else [p[0] + 3.0, p[1]]
                                                                for p in first["points"]])]
-    code, _, motion = generate(tmp_path, storyboard(teleport=teleport), capsys)
+    code, _, motion = generate(tmp_path, storyboard(teleport), capsys)
     assert code == 0
     assert_sensible(motion)
 
@@ -48,7 +49,7 @@ def test_contradictory_constraints_give_a_finite_compromise(tmp_path, capsys):
 def test_a_stroke_of_one_point_is_a_clear_error(tmp_path, capsys):
     def one_point(d):
         d["trajectories"][0]["points"] = d["trajectories"][0]["points"][:1]
-    code, err, _ = generate(tmp_path, storyboard(one_point=one_point), capsys)
+    code, err, _ = generate(tmp_path, storyboard(one_point), capsys)
     assert code == 2 and "trajectories[0].points" in err and "need at least 2" in err
     assert len(err.strip().splitlines()) == 1
 
@@ -75,7 +76,7 @@ def test_an_object_with_no_anchors_is_animated_and_exported(tmp_path, capsys):
         d["objects"][0]["anchors"] = []
         d["contacts"] = [c for c in d["contacts"] if "object" not in c]
     path = tmp_path / "story.json"
-    path.write_text(json.dumps(storyboard(no_grips=no_grips)))
+    path.write_text(json.dumps(storyboard(no_grips)))
     out = tmp_path / "m"
     code = main(["generate", str(path), "-o", str(out / "m.npz"), "--steps", "2", "--bvh-dir", str(out / "bvh"),
                  "--glb", str(out / "s.glb"), "--object-csv", str(out / "o.csv")])
@@ -87,7 +88,7 @@ def test_an_object_with_no_anchors_is_animated_and_exported(tmp_path, capsys):
 def test_a_contact_on_an_object_with_no_anchors_is_a_clear_error(tmp_path, capsys):
     def no_grips(d):
         d["objects"][0]["anchors"] = []
-    code, err, _ = generate(tmp_path, storyboard(no_grips=no_grips), capsys)
+    code, err, _ = generate(tmp_path, storyboard(no_grips), capsys)
     assert code == 2 and "has 0 anchors" in err
 
 
@@ -100,6 +101,6 @@ def test_nan_anywhere_is_a_clear_error(tmp_path, capsys, where):
         for p in parents:
             node = node[p]
         node[last] = float("nan")
-    code, err, _ = generate(tmp_path, storyboard(poison=poison), capsys)
+    code, err, _ = generate(tmp_path, storyboard(poison), capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "nan" in err.lower()
