@@ -43,14 +43,18 @@ class ObjectSpec:
             m.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, (1, 0, 0)))
             m.apply_translation((0, h / 2, 0))
             return m
-        parts = [trimesh.creation.box((w, TABLE_TOP, d), trimesh.transformations.translation_matrix(
-            (0, h - TABLE_TOP / 2, 0)))]
-        for sx in (-1, 1):
-            for sz in (-1, 1):
-                c = (sx * (w / 2 - TABLE_LEG), (h - TABLE_TOP) / 2, sz * (d / 2 - TABLE_LEG))
-                parts.append(trimesh.creation.box((TABLE_LEG, h - TABLE_TOP, TABLE_LEG),
-                                                  trimesh.transformations.translation_matrix(c)))
-        return trimesh.util.concatenate(parts)
+        centres, halves = self.table_boxes()
+        return trimesh.util.concatenate([trimesh.creation.box(2 * half, trimesh.transformations.translation_matrix(c))
+                                         for c, half in zip(centres, halves)])
+
+    def table_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """A table as boxes, the top then four legs: centres (5, 3) and half extents (5, 3), local."""
+        w, h, d = self.size
+        leg_h = (h - TABLE_TOP) / 2
+        centres = [(0, h - TABLE_TOP / 2, 0)] + [(sx * (w / 2 - TABLE_LEG), leg_h, sz * (d / 2 - TABLE_LEG))
+                                                 for sx in (-1, 1) for sz in (-1, 1)]
+        halves = [(w / 2, TABLE_TOP / 2, d / 2)] + [(TABLE_LEG / 2, leg_h, TABLE_LEG / 2)] * 4
+        return np.array(centres), np.array(halves)
 
     def sdf_local(self, p: np.ndarray) -> np.ndarray:
         """Signed distance (negative inside) of local points (..., 3) -> (...)."""
@@ -63,18 +67,16 @@ class ObjectSpec:
             vertical = np.abs(q[..., 1]) - h / 2
             outside = np.linalg.norm(np.stack([np.maximum(radial, 0), np.maximum(vertical, 0)], -1), axis=-1)
             return outside + np.minimum(np.maximum(radial, vertical), 0)
-        top = _box_sdf(p - (0, h - TABLE_TOP / 2, 0), (w / 2, TABLE_TOP / 2, d / 2))
-        legs = [_box_sdf(p - (sx * (w / 2 - TABLE_LEG), (h - TABLE_TOP) / 2, sz * (d / 2 - TABLE_LEG)),
-                         (TABLE_LEG / 2, (h - TABLE_TOP) / 2, TABLE_LEG / 2))
-                for sx in (-1, 1) for sz in (-1, 1)]
-        return np.minimum(top, np.min(np.stack(legs), axis=0))
+        centres, halves = self.table_boxes()
+        return np.min([_box_sdf(p - c, half) for c, half in zip(centres, halves)], axis=0)
 
     def sdf_world(self, p: np.ndarray, pose: np.ndarray) -> np.ndarray:
         """Signed distance of world points (..., P, 3) to the object at pose (..., 7) -> (..., P)."""
         return self.sdf_local(world_to_local(p, pose))
 
 
-def _box_sdf(q: np.ndarray, half: tuple[float, float, float]) -> np.ndarray:
+def _box_sdf(q: np.ndarray, half) -> np.ndarray:
+    """Signed distance to boxes centred at 0: q (..., 3), half (..., 3) broadcastable -> (...)."""
     d = np.abs(q) - np.asarray(half)
     return np.linalg.norm(np.maximum(d, 0), axis=-1) + np.minimum(np.max(d, axis=-1), 0)
 

@@ -128,7 +128,8 @@ def test_trajectory_3d_proxy_term():
     ctx = context(storyboard(trajectories=[Trajectory("b", "head", 3, 30, np.array([[0.0, 0.0], [1.0, 0.0]]))]),
                   T3D_hat=proxy)
     ctx.config.traj_weight_2d = 0.0
-    assert float(E.trajectory_energy(m, ctx)) == pytest.approx(0.04, rel=1e-6)
+    weight = ctx.config.traj_weight_3d
+    assert float(E.trajectory_energy(m, ctx)) == pytest.approx(weight * 0.04, rel=1e-6)
 
 
 def test_contact_huber_beyond_margin_and_occupancy_gate():

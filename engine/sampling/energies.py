@@ -34,7 +34,7 @@ from torch import Tensor
 
 from ..controls import build_controls, resample_polyline
 from ..metrics import BONES, JOINT_RADII
-from ..objects import TABLE_LEG, TABLE_TOP, ObjectSpec
+from ..objects import ObjectSpec
 from ..skeleton import FEET, HANDS, JOINT_INDEX, NUM_JOINTS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
@@ -50,10 +50,11 @@ class EnergyConfig:
     key_time_sigma: float = 0.75      # frames; 2D keypose penalty spreads to nearby frames (g_time)
     quality_sigma: float = 0.1        # m; keypoints whose 2D target is this far off the proxy's
                                       # projection get weight exp(-1/2) (g_qual)
-    traj_weight_3d: float = 1.0
+    traj_weight_3d: float = 2.0       # the lifted path pins depth, which the 2D term cannot
     traj_weight_2d: float = 1.0
     softmin_temperature: float = 0.05 ** 2   # m^2; soft closest-point temperature on squared distance
-    proxy_window: int = 8             # frames searched on the lifted 3D path around each frame
+    proxy_window: int = 24            # frames searched on the lifted 3D path around each frame: the
+                                      # lift's timing is loose, its path is not (8 frames: T3D +0.3 cm)
     contact_margin: float = 0.03      # m; a hand within this of its anchor is in contact
     hand_margin: float = 0.08         # m; wrist-to-wrist distance of two holding hands
     huber_delta: float = 0.1          # m
@@ -277,13 +278,8 @@ def object_sdf(spec: ObjectSpec, p: Tensor) -> Tensor:
         vertical = q[..., 1].abs() - h / 2
         outside = safe_norm(torch.stack([radial.clamp_min(0), vertical.clamp_min(0)], -1))
         return outside + torch.maximum(radial, vertical).clamp_max(0)
-    # table: top plus four legs, as one stack of boxes
-    leg_h = (h - TABLE_TOP) / 2
-    centres = [(0, h - TABLE_TOP / 2, 0)] + [(sx * (w / 2 - TABLE_LEG), leg_h, sz * (d / 2 - TABLE_LEG))
-                                             for sx in (-1, 1) for sz in (-1, 1)]
-    halves = [(w / 2, TABLE_TOP / 2, d / 2)] + [(TABLE_LEG / 2, leg_h, TABLE_LEG / 2)] * 4
-    q = p[..., None, :] - _const(tuple(centres), p)
-    return _box_sdf(q, _const(tuple(halves), p)).min(-1).values
+    centres, halves = (tuple(map(tuple, a.tolist())) for a in spec.table_boxes())   # top plus four legs
+    return _box_sdf(p[..., None, :] - _const(centres, p), _const(halves, p)).min(-1).values
 
 
 _SPHERE_RADII = np.concatenate([JOINT_RADII, 0.5 * (JOINT_RADII[BONES[:, 0]] + JOINT_RADII[BONES[:, 1]])])
