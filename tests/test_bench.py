@@ -133,3 +133,25 @@ def test_a_nudge_moves_one_stroke_point_and_nothing_else():
     assert np.count_nonzero(first != before) == 1 and (first - before).sum() == pytest.approx(0.005)
     assert all(a is b for a, b in zip(moved.trajectories[1:], board.trajectories[1:]))
     assert nudged(replace(board, trajectories=[]), 0.005) is None
+
+
+def test_speed_repeats_take_turns_across_methods(monkeypatch):
+    """A burst of load from another tenant should slow one round of every method, not every run
+    of one: round r runs each method once (DDPM-1000 only in its own, fewer rounds)."""
+    import engine.bench.speed as speed
+    from engine.bench.runner import TEACHER_DDPM
+    order, walls = [], iter(range(1, 100))
+
+    def fake_run(bundle, method, storyboard, seed, index=None):
+        order.append((method.key, seed))
+        return {"wall_s": float(next(walls)), "first_step_s": 0.0, "peak_rss_mib": 0.0, "network_evals": 1}
+
+    monkeypatch.setattr(speed, "_timed_run", fake_run)
+    monkeypatch.setattr(speed, "generate", lambda *a, **k: None)          # the warm-up
+    sb = Storyboard()
+    table = speed.speed_table(None, (OURS, TEACHER_DDPM, TEACHER_DDIM), (), {6.0: sb},
+                              SpeedConfig(repeats=3, ddpm_repeats=1))
+    assert order == [("ours", 0), ("teacher_ddpm", 0), ("teacher_ddim", 0),
+                     ("ours", 1), ("teacher_ddim", 1), ("ours", 2), ("teacher_ddim", 2)]
+    assert table["per_method"]["ours"]["wall_s"] == 4.0 and table["per_method"]["ours"]["repeats"] == 3
+    assert table["per_method"]["teacher_ddpm"]["repeats"] == 1

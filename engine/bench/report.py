@@ -129,7 +129,7 @@ def _speed_section(speed: dict, labels: dict) -> str:
              ratio(f["network_evals"], base.get("network_evals")), fmt(f["peak_rss_mib"], 1), str(f["repeats"])]
             for k, f in _in_order(per, labels)]
     out = ["## Speed (same machine, same run)", "",
-           f"- Scene: {speed.get('scene', '')}; times are medians over the repeats, ratios are to Ours.",
+           f"- Scene: {speed.get('scene', '')}; times are medians over the repeats, which take turns across methods (each round runs every method once), ratios are to Ours.",
            f"- Peak memory: {speed.get('memory', '')}.", "",
            table(["Method", "wall s", "x Ours", "first step s", "x Ours", "network evals", "x Ours",
                   "peak RSS MiB", "repeats"], rows)]

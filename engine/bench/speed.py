@@ -6,7 +6,10 @@ resident set size (RSS, /proc/self/statm sampled every 2 ms in a thread) during 
 minus the RSS just before it, after glibc's malloc_trim has handed freed heap back to the OS
 (otherwise memory kept from an earlier run hides this one's). A working-set estimate, not an
 exact allocation count. One untimed warm-up generation first pays the one-time costs
-(thread pools, lazy initialisation) so that they land on no method.
+(thread pools, lazy initialisation) so that they land on no method. The repeats take turns
+across methods (round r runs every method once), so that a burst of load from another tenant
+of a shared host slows one round of every method, which the medians drop, rather than every
+run of whichever method it coincides with.
 Scaling: wall time at clip lengths 2, 6 and 12 s and for 2 people without vs with the object.
 """
 from __future__ import annotations
@@ -71,19 +74,27 @@ class PeakRss:
         self.peak_delta = self.peak - self.before
 
 
+def _timed_run(bundle, method: Method, storyboard: Storyboard, seed: int, index=None) -> dict[str, float]:
+    """One generation: wall time, first-step time (s), peak RSS delta (MiB), network evaluations."""
+    with PeakRss() as rss:
+        start = time.perf_counter()
+        g = generate(bundle, method, storyboard, seed=seed, index=index)
+        wall = time.perf_counter() - start
+    return {"wall_s": wall, "first_step_s": g.first_step_s, "peak_rss_mib": rss.peak_delta / 2 ** 20,
+            "network_evals": g.network_evals}
+
+
+def _medians(runs: list[dict[str, float]]) -> dict[str, float]:
+    """Median wall time, first-step time and peak RSS of runs of one method; its evaluations."""
+    return {"wall_s": statistics.median(r["wall_s"] for r in runs),
+            "first_step_s": statistics.median(r["first_step_s"] for r in runs),
+            "network_evals": runs[-1]["network_evals"],
+            "peak_rss_mib": statistics.median(r["peak_rss_mib"] for r in runs), "repeats": len(runs)}
+
+
 def measure(bundle, method: Method, storyboard: Storyboard, repeats: int, index=None) -> dict[str, float]:
-    """Median wall time, first-step time (s) and peak RSS delta (MiB); network evaluations."""
-    walls, firsts, peaks, evals = [], [], [], 0
-    for r in range(repeats):
-        with PeakRss() as rss:
-            start = time.perf_counter()
-            g = generate(bundle, method, storyboard, seed=r, index=index)
-            walls.append(time.perf_counter() - start)
-        firsts.append(g.first_step_s)
-        peaks.append(rss.peak_delta / 2 ** 20)
-        evals = g.network_evals
-    return {"wall_s": statistics.median(walls), "first_step_s": statistics.median(firsts),
-            "network_evals": evals, "peak_rss_mib": statistics.median(peaks), "repeats": repeats}
+    """_medians of `repeats` runs of one method in a row (seeds 0, 1, ...)."""
+    return _medians([_timed_run(bundle, method, storyboard, r, index) for r in range(repeats)])
 
 
 def without_object(sb: Storyboard) -> Storyboard:
@@ -101,11 +112,16 @@ def speed_table(bundle, methods: tuple[Method, ...], scaling_methods: tuple[Meth
     base = storyboards_by_length[6.0]
     generate(bundle, methods[0], base, index=index)          # warm-up, untimed
     out: dict = {"per_method": {}, "length": {}, "entities": {}}
-    for m in methods:
-        slow = m.sampler is not None and m.sampler.method == "teacher-ddpm"
-        out["per_method"][m.key] = measure(bundle, m, base, config.ddpm_repeats if slow else config.repeats, index)
-        if log:
-            log(f"speed {m.label}: {out['per_method'][m.key]['wall_s']:.2f} s")
+    repeats = {m.key: config.ddpm_repeats if m.sampler is not None and m.sampler.method == "teacher-ddpm"
+               else config.repeats for m in methods}
+    runs: dict[str, list] = {m.key: [] for m in methods}
+    for r in range(max(repeats.values())):       # round r: every method once, in turn
+        for m in methods:
+            if r < repeats[m.key]:
+                runs[m.key].append(_timed_run(bundle, m, base, r, index))
+                if log:
+                    log(f"speed {m.label} (round {r + 1}): {runs[m.key][-1]['wall_s']:.2f} s")
+    out["per_method"] = {key: _medians(method_runs) for key, method_runs in runs.items()}
     for m in scaling_methods:
         out["length"][m.key] = {f"{s:g}": measure(bundle, m, storyboards_by_length[s], config.scaling_repeats,
                                                   index)["wall_s"] for s in config.lengths_s}

@@ -58,7 +58,7 @@ class BenchConfig:
     def quick(cls) -> "BenchConfig":
         return cls(protocol=ProtocolConfig(per_scenario=1, noise_scenes=2, real_windows=1),
                    runner=RunnerConfig(variations=2, diversity_items=1, ddpm_items=1),
-                   speed=SpeedConfig(repeats=2, ddpm_repeats=1),
+                   speed=SpeedConfig(repeats=3, ddpm_repeats=1),
                    speed_methods=(OURS, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT),
                    scaling_methods=(OURS, TEACHER_DDIM, RETRIEV_ADAPT),
                    sweep_cfg=(1.0, 1.6, 2.5), sweep_items=2, trace_methods=(OURS, ABLATIONS[0]), trace_items=1,
