@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 from pathlib import Path
 
 NO_DISPLAY = ("sketch2colab-studio needs a display, and none was found (DISPLAY and WAYLAND_DISPLAY "
@@ -27,6 +28,8 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch  # noqa: F401  loaded now, not on the first Generate, where its import would stall the GUI
 
+    from .examples import EXAMPLES_DIR
+    from .generation import warm_up
     from .mainwindow import APP_NAME, MainWindow
 
     app = QApplication([sys.argv[0], *argv])
@@ -35,6 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     data_dir = Path(QStandardPaths.writableLocation(QStandardPaths.AppDataLocation))
     window = MainWindow(data_dir=data_dir, settings=QSettings())
     window.show()
+    threading.Thread(target=warm_up, args=(EXAMPLES_DIR / "box_handoff.json",), name="warm-up", daemon=True).start()
     recovered = window.offer_recovery()
     files = [a for a in argv if not a.startswith("-")]
     if files and not recovered:
