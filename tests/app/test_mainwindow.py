@@ -61,7 +61,7 @@ def test_undo_redo_and_playback_shortcuts(qtbot, window):
 
 
 def test_generation_streams_every_step_in_order(qtbot, make_window):
-    sampler = FakeSampler(delay_s=0.08)   # time for the GUI to show each step, so none is skipped
+    sampler = FakeSampler(delay_s=0.12)   # slower than the worker's preview interval, so none is skipped
     window = make_window(generate=sampler)
     load_sample(window)
     window.doc.set_settings(window.doc.settings.__class__(steps=8))
@@ -102,6 +102,34 @@ def test_generation_streams_every_step_in_order(qtbot, make_window):
           f"over {len(gaps) - 1} ticks")
     assert max(gaps[1:]) < 150   # the target is 50 ms; margin for a shared, loaded CI machine
 
+
+
+def test_a_fast_sampler_hands_over_a_step_per_interval_and_always_the_last(qtbot, make_window):
+    """Decoding a preview costs a third of a step: steps quicker than the worker's interval are
+    passed over undecoded (the mailbox would drop them anyway), never the final one."""
+    sampler, made = FakeSampler(delay_s=0.01), []
+
+    def recorded(storyboard, settings):
+        stream = sampler(storyboard, settings)
+        try:
+            while True:
+                made.append(next(stream))
+                yield made[-1]
+        except StopIteration as stop:
+            return stop.value
+
+    window = make_window(generate=recorded)
+    load_sample(window)
+    window.doc.set_settings(window.doc.settings.__class__(steps=30))
+    shown = []
+    window.runner.step.connect(shown.append)
+    with qtbot.waitSignal(window.runner.finished, timeout=10_000):
+        window.generate()
+    qtbot.wait(50)
+    decoded = [e.step for e in made if "preview" in e.__dict__]
+    assert [e.step for e in made] == list(range(30))
+    assert 3 <= len(decoded) < 20 and decoded[0] == 0 and decoded[-1] == 29
+    assert shown[-1].step == 29 and all("preview" in e.__dict__ for e in shown)   # decoded in the worker
 
 def test_cancel_stops_within_one_step(qtbot, make_window, dialogs):
     sampler = FakeSampler(delay_s=0.05)
