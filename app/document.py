@@ -65,6 +65,7 @@ class Document(QObject):
         self.clips: list[MotionClip] = []
         self.variation = 0
         self.phase: np.ndarray | None = None   # (N, 3) occupancy of the last finished generation
+        self._result_source: str | None = None  # the storyboard the clips came from, as JSON
         self.reference: MotionClip | None = None
 
     # ---- whole-document changes ------------------------------------------------------------
@@ -77,7 +78,7 @@ class Document(QObject):
                                    object=storyboard.objects[0].id if storyboard.objects else None)
         self.frame = 0
         self.span = None
-        self.clips, self.variation, self.phase = [], 0, None
+        self.clips, self.variation, self.phase, self._result_source = [], 0, None, None
         self._unsaved_without_edits = dirty
         for signal in (self.storyboardChanged, self.selectionChanged, self.spanChanged,
                        self.resultChanged, self.pathChanged):
@@ -143,10 +144,19 @@ class Document(QObject):
             self.settingsChanged.emit()
 
     # ---- generation results ------------------------------------------------------------------
-    def set_result(self, clips: list[MotionClip], phase: np.ndarray | None) -> None:
+    def set_result(self, clips: list[MotionClip], phase: np.ndarray | None,
+                   source: Storyboard | None = None) -> None:
+        """source: the storyboard the clips were generated from (None: the current one)."""
         self.clips, self.variation = list(clips), 0
         self.phase = phase if phase is not None else (clips[0].phase if clips else None)
+        self._result_source = (source or self.storyboard).to_json() if clips else None
         self.resultChanged.emit()
+
+    @property
+    def result_outdated(self) -> bool:
+        """A result is shown and the storyboard differs from the one it came from (an edit made
+        since, or during its generation, and not undone)."""
+        return self._result_source is not None and self._result_source != self.storyboard.to_json()
 
     def choose_variation(self, index: int) -> None:
         if 0 <= index < len(self.clips) and index != self.variation:

@@ -47,6 +47,7 @@ TOOL_TIPS = {"select": "Select and move joints and objects",
              "contact": "Click a hand, then an object anchor or another hand",
              "erase": "Click a joint, path, contact or object to remove it"}
 NO_MOTION = "There is no generated motion to export yet: generate first (Ctrl+Enter)."
+OUTDATED_NOTICE = "The sketch has changed since this motion: Ctrl+Enter generates it again."
 
 
 class MainWindow(QMainWindow):
@@ -318,11 +319,16 @@ class MainWindow(QMainWindow):
     def _on_storyboard(self) -> None:
         self.viewport.set_storyboard(self.doc.storyboard)
         self._on_frame(self.doc.frame)
+        self._show_outdated()
 
     def _show_result(self) -> None:
         """A new clip reframes the 3D camera (set_clip); the playhead stays where the artist left it."""
         self.viewport.set_clip(self.doc.clip)
         self.viewport.set_frame(self.doc.frame)
+        self._show_outdated()
+
+    def _show_outdated(self) -> None:
+        self.viewport.set_notice(OUTDATED_NOTICE if self.doc.result_outdated else "")
 
     def _set_onion(self, on: bool) -> None:
         self.canvas.show_onion = on
@@ -564,6 +570,7 @@ class MainWindow(QMainWindow):
             self.error(f"The storyboard cannot be generated from: {e}")
             return
         settings, generate = self.doc.settings, self._generate
+        self._generating_from = storyboard
         self._generation_started = time.perf_counter()
         self.progress.setRange(0, settings.steps)
         self.progress.setValue(0)
@@ -586,7 +593,7 @@ class MainWindow(QMainWindow):
 
     def _on_generated(self, result: GenerationResult) -> None:
         clips = list(result.clips)
-        self.doc.set_result(clips, clips[0].phase if clips else None)
+        self.doc.set_result(clips, clips[0].phase if clips else None, source=self._generating_from)
         self.statusBar().showMessage(
             f"Generated {len(clips)} variation{'s' * (len(clips) != 1)} in {result.wall_time_s:.1f} s "
             f"(first step after {result.first_step_s:.2f} s).", 10000)

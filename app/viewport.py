@@ -29,6 +29,7 @@ Public API (everything else is private):
     frame_all()                            aim the camera at everything (also the F key)
     camera: OrbitCamera                    change it, then call update_view()
     empty_hint: str                        shown over the ground while there is no clip
+    set_notice(text: str)                  a line under the frame caption while a clip is shown
     grab_png(path) -> bool                 save what the widget shows
 Signals: playToggleRequested(), stepRequested(frames: int).
 Mouse: left drag orbits, middle drag or shift + left drag pans, wheel zooms.
@@ -55,6 +56,7 @@ WHEEL_ZOOM_PER_NOTCH = 0.88  # distance factor per 120 units of wheel angle
 MOVING_SCALE = 0.5           # render resolution while the camera moves (a quarter of the pixels)
 CAMERA_REST_MS = 150         # after the last wheel step the view renders at full size again
 PLACEHOLDER = QColor("#dfe3e8")
+NOTICE_COLOR = "#b0451c"     # a burnt orange that reads on the sky and the ground
 
 
 def _prefetch_object_meshes() -> threading.Thread:
@@ -75,6 +77,7 @@ class Viewport(QWidget):
         self.setMinimumSize(160, 120)
         self.camera = OrbitCamera()
         self.empty_hint = ""
+        self.notice = ""
         self._config = config
         self._renderer: SceneRenderer | None = None
         self._warm = False   # warm_up has run: the renderer exists (or failed, see _error)
@@ -117,6 +120,11 @@ class Viewport(QWidget):
     def set_preview(self, clip: MotionClip) -> None:
         self._clip = clip
         self.update_view()
+
+    def set_notice(self, text: str) -> None:
+        if text != self.notice:
+            self.notice = text
+            self.update()   # text over the image: no new render
 
     def set_storyboard(self, storyboard: Storyboard | None) -> None:
         self._storyboard = storyboard
@@ -203,8 +211,12 @@ class Viewport(QWidget):
             painter.drawImage(self.rect(), self._image)
         if self.num_frames:
             painter.setPen(QColor(60, 60, 60))
-            painter.drawText(self.rect().adjusted(8, 6, -8, -6), Qt.AlignLeft | Qt.AlignTop,
-                             f"frame {self.frame} / {self.num_frames - 1}")
+            caption = self.rect().adjusted(8, 6, -8, -6)
+            painter.drawText(caption, Qt.AlignLeft | Qt.AlignTop, f"frame {self.frame} / {self.num_frames - 1}")
+            if self.notice:
+                painter.setPen(QColor(NOTICE_COLOR))
+                painter.drawText(caption.adjusted(0, painter.fontMetrics().lineSpacing(), 0, 0),
+                                 Qt.AlignLeft | Qt.AlignTop | Qt.TextWordWrap, self.notice)
         elif self.empty_hint and self._image is not None:
             self._paint_hint(painter)
         painter.end()

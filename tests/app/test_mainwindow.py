@@ -226,3 +226,26 @@ def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window):
     doc.undo_stack.undo()
     doc.undo_stack.undo()
     assert doc.storyboard.to_json() == before and panel.fps.value() == 20.0
+
+
+def test_the_view_says_when_the_sketch_changed_since_its_motion(qtbot, make_window):
+    from app.mainwindow import OUTDATED_NOTICE
+    window = make_window(generate=FakeSampler(delay_s=0.01))
+    load_sample(window)
+    doc, view = window.doc, window.viewport
+    with qtbot.waitSignal(window.runner.finished, timeout=10_000):
+        window.generate()
+    assert view.num_frames and view.notice == ""
+
+    doc.undo_stack.push(cmd.SetTiming(doc, 24.0))
+    assert view.notice == OUTDATED_NOTICE
+    doc.undo_stack.undo()                       # back to the storyboard the motion came from
+    assert view.notice == ""
+
+    slow = FakeSampler(delay_s=0.05)            # an edit made while generating: outdated on arrival
+    window._generate = slow
+    with qtbot.waitSignal(window.runner.finished, timeout=10_000):
+        window.generate()
+        qtbot.waitUntil(lambda: len(slow.yielded) >= 1, timeout=5000)
+        doc.undo_stack.push(cmd.SetTiming(doc, 30.0))
+    assert view.notice == OUTDATED_NOTICE
