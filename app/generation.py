@@ -26,6 +26,9 @@ class GenerationSettings:
     use_ctmc: bool = True
     steady: bool = False            # damped guidance (SamplerConfig.guidance_max_rate)
     variations: int = 1
+    # Of the machine, not the document: the window fills these in from its preferences.
+    threads: int | None = None      # torch threads (None: the cores other programs leave free)
+    reserve_cores: float = 0.0      # cores left to the viewport's drawing (software OpenGL)
 
 
 StepStream = Generator[StepEvent, None, GenerationResult]
@@ -52,7 +55,8 @@ def start_generation(storyboard: Storyboard, settings: GenerationSettings) -> St
     config = SamplerConfig(steps=settings.steps, seed=settings.seed, cfg=settings.cfg,
                            use_energy=settings.use_energy, use_ctmc=settings.use_ctmc,
                            guidance_max_rate=STEADY_GUIDANCE_RATE if settings.steady else None,
-                           variations=settings.variations)
+                           variations=settings.variations, threads=settings.threads,
+                           reserve_cores=settings.reserve_cores)
     return (yield from sample(_bundle(), storyboard, config))
 
 

@@ -8,15 +8,17 @@ from __future__ import annotations
 
 import copy
 import time
+from dataclasses import replace
 from collections.abc import Callable
 from pathlib import Path
 
-from PySide6.QtCore import QSettings, Qt
+from PySide6.QtCore import QEvent, QSettings, Qt
 from PySide6.QtGui import QAction, QActionGroup, QKeySequence
-from PySide6.QtWidgets import (QDockWidget, QFileDialog, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
-                               QProgressBar, QSizePolicy, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QDockWidget, QFileDialog, QFrame, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
+                               QProgressBar, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
 from engine.clip import MotionClip
+from engine.cpu import usable_cores
 from engine.export import export_gltf, export_npz, export_object_path
 from engine.render import SceneOptions
 from engine.sampling.events import GenerationResult, StepEvent
@@ -39,6 +41,9 @@ from .worker import GenerationRunner
 APP_NAME = "Sketch2Colab Studio"
 FILE_FILTER = "Storyboards (*.json);;All files (*)"
 MAX_RECENT = 8
+THREADS_KEY = "generation/threads"   # 0 or absent: automatic
+GEOMETRY_KEY, DOCKS_KEY = "window/geometry", "window/docks"
+LAYOUT_VERSION = 1                   # bump when the docks change: an older saved layout is ignored
 TOOL_KEYS = {"select": "V", "keypose": "K", "trajectory": "T", "object": "O", "contact": "C", "erase": "E"}
 TOOL_TIPS = {"select": "Select and move joints and objects",
              "keypose": "Click to place a stick figure at the playhead; drag joints to pose it",
@@ -48,6 +53,28 @@ TOOL_TIPS = {"select": "Select and move joints and objects",
              "erase": "Click a joint, path, contact or object to remove it"}
 NO_MOTION = "There is no generated motion to export yet: generate first (Ctrl+Enter)."
 OUTDATED_NOTICE = "The sketch has changed since this motion: Ctrl+Enter generates it again."
+
+
+class VerticalScroll(QScrollArea):
+    """Scrolls a panel up and down, never sideways: as wide as the panel needs (plus the scroll
+    bar), as short as a laptop screen leaves it."""
+
+    def __init__(self, panel: QWidget):
+        super().__init__()
+        self.setWidget(panel)
+        self.setWidgetResizable(True)
+        self.setFrameShape(QFrame.NoFrame)
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarAlwaysOff)
+        panel.installEventFilter(self)
+        self._fit_width()
+
+    def eventFilter(self, watched, event) -> bool:
+        if event.type() == QEvent.LayoutRequest:  # e.g. a combo box got longer names
+            self._fit_width()
+        return False
+
+    def _fit_width(self) -> None:
+        self.setMinimumWidth(self.widget().minimumSizeHint().width() + self.verticalScrollBar().sizeHint().width())
 
 
 class MainWindow(QMainWindow):
@@ -76,7 +103,7 @@ class MainWindow(QMainWindow):
         self._build_toolbar()
         self._build_status()
         self._connect()
-        self.resize(1360, 860)
+        self._restore_layout()
         self._update_title()
 
     # ---- construction ------------------------------------------------------------------------
@@ -178,18 +205,21 @@ class MainWindow(QMainWindow):
         header.addWidget(self.playback_controls)
         header.addSpacing(8)
         header.addWidget(self.frame_label)
-        header.addStretch(1)
+        header.addSpacing(16)
         header.addWidget(QLabel(phase_legend_html()))
         header.addSpacing(16)
         hint = QLabel("shift-drag: span \u00b7 double-click: add key \u00b7 right-click: delete")
         hint.setStyleSheet("color: #8a857a;")
-        header.addWidget(hint)
+        hint.setToolTip(hint.text())
+        hint.setMinimumWidth(0)      # clipped on a narrow window rather than widening it
+        hint.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)
+        header.addWidget(hint, 1)
         column.addLayout(header)
         column.addWidget(self.timeline)
         column.addWidget(self.phase_strip, 1)
         self.timeline_dock = self._dock("Timeline", timeline_panel, Qt.BottomDockWidgetArea)
         self.viewport_dock = self._dock("3D View", self.viewport, Qt.RightDockWidgetArea)
-        self.properties_dock = self._dock("Properties", self.properties, Qt.LeftDockWidgetArea)
+        self.properties_dock = self._dock("Properties", VerticalScroll(self.properties), Qt.LeftDockWidgetArea)
         self.resizeDocks([self.viewport_dock], [440], Qt.Horizontal)
         self.resizeDocks([self.properties_dock], [250], Qt.Horizontal)
         self.resizeDocks([self.timeline_dock], [210], Qt.Vertical)
@@ -202,6 +232,24 @@ class MainWindow(QMainWindow):
                          | QDockWidget.DockWidgetClosable)
         self.addDockWidget(area, dock)
         return dock
+
+    def _restore_layout(self) -> None:
+        """The window's size, place and docks as they were when it last closed. The first time,
+        1360 x 860, or maximized on a screen with less room (a 1366 x 768 laptop: its panel and
+        the title bar come off the 768)."""
+        geometry, state = self.settings.value(GEOMETRY_KEY), self.settings.value(DOCKS_KEY)
+        if geometry is not None and self.restoreGeometry(geometry):  # Qt moves it onto a screen
+            if state is not None:
+                self.restoreState(state, LAYOUT_VERSION)
+            return
+        screen = self.screen().availableGeometry()
+        self.resize(min(1360, screen.width()), min(860, screen.height()))
+        if screen.width() < 1360 + 40 or screen.height() < 860 + 60:
+            self.setWindowState(Qt.WindowMaximized)
+
+    def save_layout(self) -> None:
+        self.settings.setValue(GEOMETRY_KEY, self.saveGeometry())
+        self.settings.setValue(DOCKS_KEY, self.saveState(LAYOUT_VERSION))
 
     def _build_menus(self) -> None:
         bar = self.menuBar()
@@ -238,6 +286,9 @@ class MainWindow(QMainWindow):
         speed_menu.addActions(list(self.speed_actions.values()))
         gen = bar.addMenu("&Generate")
         gen.addActions([self.act_generate, self.act_cancel])
+        gen.addSeparator()
+        self.threads_menu = gen.addMenu("CPU &Threads")
+        self._build_threads_menu(self.threads_menu)
         view = bar.addMenu("&View")
         view.addAction(self.act_onion)
         view.addActions(list(self.overlay_actions.values()))
@@ -245,6 +296,32 @@ class MainWindow(QMainWindow):
         for dock in (self.timeline_dock, self.viewport_dock, self.properties_dock):
             view.addAction(dock.toggleViewAction())
         self._rebuild_recent()
+
+    def _build_threads_menu(self, menu) -> None:
+        """Automatic (the cores other programs leave free, engine.cpu) or a fixed count; a
+        preference of this machine, kept in the settings."""
+        menu.setToolTipsVisible(True)
+        group = QActionGroup(self)
+        cores = usable_cores()
+        counts = [0] + sorted({n for n in (1, 2, 4, 8, 16, 32, 64) if n < cores} | {cores})
+        current = self.threads_preference() or 0
+        self.threads_actions: dict[int, QAction] = {}
+        for n in counts:
+            act = menu.addAction("Automatic" if n == 0 else f"{n} thread{'s' * (n > 1)}")
+            act.setCheckable(True)
+            act.setChecked(n == current)
+            act.triggered.connect(lambda _=False, n=n: self.settings.setValue(THREADS_KEY, n))
+            group.addAction(act)
+            self.threads_actions[n] = act
+        self.threads_actions[0].setToolTip("Use the cores that other programs leave free, re-measured while generating")
+
+    def threads_preference(self) -> int | None:
+        """The torch thread count chosen in Generate > CPU Threads; None for automatic."""
+        try:
+            n = int(self.settings.value(THREADS_KEY, 0) or 0)
+        except (TypeError, ValueError):
+            return None
+        return n if n > 0 else None
 
     def _build_toolbar(self) -> None:
         bar = self.addToolBar("Tools")
@@ -569,7 +646,10 @@ class MainWindow(QMainWindow):
         except StoryboardError as e:
             self.error(f"The storyboard cannot be generated from: {e}")
             return
-        settings, generate = self.doc.settings, self._generate
+        # Software OpenGL draws the streamed previews on the same cores: leave it one.
+        settings = replace(self.doc.settings, threads=self.threads_preference(),
+                           reserve_cores=1.0 if self.viewport.draws_on_cpu() else 0.0)
+        generate = self._generate
         self._generating_from = storyboard
         self._generation_started = time.perf_counter()
         self.progress.setRange(0, settings.steps)
@@ -616,6 +696,7 @@ class MainWindow(QMainWindow):
         if not self.maybe_save():
             event.ignore()
             return
+        self.save_layout()
         self.shutdown()
         event.accept()
 

@@ -3,7 +3,8 @@
 The worker drives a generator of StepEvents on its own thread. Steps reach the GUI through a
 one-slot mailbox: the worker overwrites the latest event and signals only when the GUI has taken
 the previous one, so a fast sampler never builds a backlog in the GUI's event queue (the GUI
-simply skips to the newest step) and a slow one delivers every step. Decoding a step's preview
+simply skips to the newest step) and a slow one delivers every step. The sampler chooses its
+own thread count (engine.cpu), on this thread. Decoding a step's preview
 costs about a third of the step itself, and drawing it takes the same two cores where OpenGL
 runs in software (under Xvfb a generation took 2.8 s with every step drawn, 1.4-1.9 s with ten a
 second, 1.0-1.2 s with none), so the worker hands over at most one step per `preview_interval_s`
@@ -30,11 +31,9 @@ class GenerationWorker(QObject):
     failed = Signal(str)                 # one-line message
     cancelled = Signal()
 
-    def __init__(self, make_stream: Callable[[], StepStream], torch_threads: int = 2,
-                 preview_interval_s: float = 0.1):
+    def __init__(self, make_stream: Callable[[], StepStream], preview_interval_s: float = 0.1):
         super().__init__()
         self._make_stream = make_stream
-        self._torch_threads = torch_threads
         self._preview_interval_s = preview_interval_s
         self._cancel = threading.Event()
         self._lock = threading.Lock()
@@ -58,8 +57,6 @@ class GenerationWorker(QObject):
 
     @Slot()
     def run(self) -> None:
-        import torch
-        torch.set_num_threads(self._torch_threads)  # this thread's intra-op pool; 2 cores here
         stream, handed_over = None, -float("inf")
         try:
             stream = self._make_stream()

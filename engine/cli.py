@@ -140,9 +140,14 @@ def cmd_demo(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .cpu import ENV_VAR
     from .export import add_export_arguments
     p = argparse.ArgumentParser(prog="sketch2colab", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    computes = argparse.ArgumentParser(add_help=False)   # the commands that run torch
+    computes.add_argument("--threads", type=int, metavar="N",
+                          help=f"torch CPU threads (default: the cores other programs leave free, re-measured "
+                               f"as the run goes on; also settable as {ENV_VAR}=N)")
 
     s = sub.add_parser("validate", help="check a storyboard JSON file")
     s.add_argument("file")
@@ -173,7 +178,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seconds", type=float, default=6.0)
     s.set_defaults(func=cmd_synth)
 
-    s = sub.add_parser("train", help="train a model stage (or all) on clip folders; torchrun for several GPUs")
+    s = sub.add_parser("train", parents=[computes],
+                       help="train a model stage (or all) on clip folders; torchrun for several GPUs")
     s.add_argument("stage", choices=["vqvae", "encoders", "teacher", "student1", "student2", "potential",
                                      "ctmc", "surrogate", "all"])
     s.add_argument("--config", choices=["default", "large"], default="default",
@@ -183,7 +189,6 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--steps", type=int, help="steps per stage (overrides the config)")
     s.add_argument("--resume", action="store_true", help="continue from runs/STAGE/checkpoint.pt")
     s.add_argument("--runs", default="runs", help="output root (default runs/)")
-    s.add_argument("--threads", type=int, help="torch CPU threads (default: the config's)")
     s.set_defaults(func=cmd_train)
 
     s = sub.add_parser("bundle", help="collect trained stages into a model bundle with its model card")
@@ -195,7 +200,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--command", help="the training command to record in the model card")
     s.set_defaults(func=cmd_bundle)
 
-    s = sub.add_parser("generate", help="generate motion for a storyboard")
+    s = sub.add_parser("generate", parents=[computes], help="generate motion for a storyboard")
     s.add_argument("storyboard")
     s.add_argument("-o", "--output", required=True, metavar="MOTION.npz")
     s.add_argument("--steps", type=int, default=30, help="solver steps (default 30; DDIM steps for teacher-ddim)")
@@ -215,13 +220,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--log-steps", action="store_true", help="one line per solver step instead of a bar")
     s.set_defaults(func=cmd_generate)
 
-    s = sub.add_parser("demo", help="run the bundled example storyboards headless; contact sheets and GIFs")
+    s = sub.add_parser("demo", parents=[computes], help="run the bundled example storyboards headless; contact sheets and GIFs")
     s.add_argument("-o", "--output", default="demo_out")
     s.add_argument("--steps", type=int, default=30)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--no-render", action="store_true", help="skip the contact sheets and GIFs")
     s.set_defaults(func=cmd_demo)
-    s = sub.add_parser("bench", help="benchmark every method on held-out storyboards (writes BENCHMARKS.md)")
+    s = sub.add_parser("bench", parents=[computes], help="benchmark every method on held-out storyboards (writes BENCHMARKS.md)")
     s.add_argument("--quick", action="store_true", help="small subset, under 5 minutes on 2 cores")
     s.add_argument("-o", "--output", default="BENCHMARKS.md", metavar="BENCHMARKS.md")
     s.add_argument("--json", metavar="FILE", help="also write every figure as JSON")
@@ -239,12 +244,28 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def _set_threads(threads: int | None) -> None:
+    """--threads N becomes the process's override (engine.cpu reads it), for every layer alike."""
+    import os
+
+    from .cpu import ENV_VAR, threads_override
+    if threads is not None:
+        if threads < 1:
+            raise UserError(f"--threads must be at least 1, got {threads}")
+        os.environ[ENV_VAR] = str(threads)
+    try:
+        threads_override()
+    except ValueError as e:
+        raise UserError(str(e)) from None
+
+
 def main(argv: list[str] | None = None) -> int:
     from .clip import ClipError
     from .storyboard import StoryboardError
 
     args = build_parser().parse_args(argv)
     try:
+        _set_threads(getattr(args, "threads", None))
         return args.func(args) or 0
     except (UserError, StoryboardError, ClipError, OSError) as e:  # OSError: missing files, permissions
         print(f"error: {e}", file=sys.stderr)

@@ -4,8 +4,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install.sh
 if [ -n "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
-    exec sketch2colab-studio "$@"
+    exec .venv/bin/sketch2colab-studio "$@"
 else
     echo "No screen found: running the headless demo (results in ./demo_out)."
-    exec sketch2colab demo -o demo_out "$@"
+    exec .venv/bin/sketch2colab demo -o demo_out "$@"
 fi

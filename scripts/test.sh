@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Installs what is missing, then runs the whole test suite headless.
+# Installs what is missing, then runs the whole test suite headless in the project's venv.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install.sh
 export QT_QPA_PLATFORM=offscreen
-python3 -m pytest "$@"
+exec .venv/bin/python -m pytest "$@"

@@ -7,6 +7,8 @@
 # ../shared/data/cmu_salsa for the real pairs (skipped if absent).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash scripts/install.sh
+export PATH="$PWD/.venv/bin:$PATH"
 SALSA=../shared/data/cmu_salsa
 ARGS=(--data data/synth --runs runs)
 

@@ -2,6 +2,7 @@
 untrained bundle), and the paper-target arithmetic on hand-made numbers."""
 import json
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -150,8 +151,28 @@ def test_speed_repeats_take_turns_across_methods(monkeypatch):
     monkeypatch.setattr(speed, "generate", lambda *a, **k: None)          # the warm-up
     sb = Storyboard()
     table = speed.speed_table(None, (OURS, TEACHER_DDPM, TEACHER_DDIM), (), {6.0: sb},
-                              SpeedConfig(repeats=3, ddpm_repeats=1))
+                              SpeedConfig(repeats=3, ddpm_repeats=1, busy_repeats=0))
     assert order == [("ours", 0), ("teacher_ddpm", 0), ("teacher_ddim", 0),
                      ("ours", 1), ("teacher_ddim", 1), ("ours", 2), ("teacher_ddim", 2)]
     assert table["per_method"]["ours"]["wall_s"] == 4.0 and table["per_method"]["ours"]["repeats"] == 3
     assert table["per_method"]["teacher_ddpm"]["repeats"] == 1
+
+
+def test_busy_row_runs_in_turns_beside_a_real_busy_loop(monkeypatch):
+    """The busy row alternates quiet and busy runs, and during the busy ones another process
+    really keeps a core busy (measured by engine.cpu, as the sampler sees it)."""
+    import engine.bench.speed as speed
+    from engine.cpu import CpuLoad
+    seen = []
+
+    def fake_run(bundle, method, storyboard, seed, index=None):
+        load = CpuLoad()
+        time.sleep(0.2)
+        seen.append(load.others())
+        return {"wall_s": 1.0 + len(seen) % 2, "first_step_s": 0.0, "peak_rss_mib": 0.0, "network_evals": 1}
+
+    monkeypatch.setattr(speed, "_timed_run", fake_run)
+    busy = speed.beside_busy_process(None, OURS, Storyboard(), SpeedConfig(busy_repeats=2))
+    quiet_load, busy_load = seen[0::2], seen[1::2]
+    assert min(busy_load) > 0.7 and min(busy_load) > max(quiet_load) + 0.5
+    assert busy["quiet"]["wall_s"] == 2.0 and busy["busy"]["wall_s"] == 1.0 and busy["ratio"] == 0.5 and busy["met"]

@@ -133,6 +133,14 @@ def _speed_section(speed: dict, labels: dict) -> str:
            f"- Peak memory: {speed.get('memory', '')}.", "",
            table(["Method", "wall s", "x Ours", "first step s", "x Ours", "network evals", "x Ours",
                   "peak RSS MiB", "repeats"], rows)]
+    busy = speed.get("busy")
+    if busy:
+        rows = [[name, fmt(busy[key]["wall_s"]), fmt(busy[key]["first_step_s"]), str(busy[key]["repeats"])]
+                for name, key in (("quiet", "quiet"), ("beside a busy loop", "busy"))]
+        out += ["", f"{labels[busy['method']]} beside another CPU-bound program (a busy loop the benchmark starts "
+                f"and stops itself; runs in turns): {fmt(busy['ratio'], 2)}x the quiet time, target at most "
+                f"{fmt(busy['target'], 1)}x: {'met' if busy['met'] else 'not met'}.", "",
+                table(["Machine", "wall s", "first step s", "repeats"], rows)]
     lengths = speed["length"]
     if lengths:
         secs = list(next(iter(lengths.values())))

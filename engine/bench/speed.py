@@ -11,12 +11,17 @@ across methods (round r runs every method once), so that a burst of load from an
 of a shared host slows one round of every method, which the medians drop, rather than every
 run of whichever method it coincides with.
 Scaling: wall time at clip lengths 2, 6 and 12 s and for 2 people without vs with the object.
+Busy machine: the first method (Ours) again, in turns with and without a CPU-bound process beside
+it (a busy loop the benchmark starts and stops itself), to show that the thread count follows the
+free cores (engine.cpu); the target is at most twice the quiet time.
 """
 from __future__ import annotations
 
 import ctypes
 import os
 import statistics
+import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass, replace
@@ -34,6 +39,8 @@ class SpeedConfig:
     ddpm_repeats: int = 3               # DDPM-1000 takes ~30x longer than the others
     scaling_repeats: int = 1
     lengths_s: tuple[float, ...] = LENGTHS_S
+    busy_repeats: int = 3               # runs of the first method with and without a busy loop beside it
+    busy_target: float = 2.0            # at most this many times the quiet wall time
 
 
 def _trim_heap() -> None:
@@ -74,6 +81,19 @@ class PeakRss:
         self.peak_delta = self.peak - self.before
 
 
+class CompetingLoad:
+    """A CPU-bound program beside the benchmark while the block runs: a busy loop on one core."""
+
+    def __enter__(self) -> "CompetingLoad":
+        self._process = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+        time.sleep(0.3)  # running at full speed before the measurement starts
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._process.kill()
+        self._process.wait()
+
+
 def _timed_run(bundle, method: Method, storyboard: Storyboard, seed: int, index=None) -> dict[str, float]:
     """One generation: wall time, first-step time (s), peak RSS delta (MiB), network evaluations."""
     with PeakRss() as rss:
@@ -95,6 +115,24 @@ def _medians(runs: list[dict[str, float]]) -> dict[str, float]:
 def measure(bundle, method: Method, storyboard: Storyboard, repeats: int, index=None) -> dict[str, float]:
     """_medians of `repeats` runs of one method in a row (seeds 0, 1, ...)."""
     return _medians([_timed_run(bundle, method, storyboard, r, index) for r in range(repeats)])
+
+
+def beside_busy_process(bundle, method: Method, storyboard: Storyboard, config: SpeedConfig,
+                        index=None, log=None) -> dict:
+    """{"method", "quiet": _medians, "busy": _medians, "ratio", "target", "met"}: `method` in
+    turns without and with CompetingLoad, busy_repeats times each."""
+    quiet, busy = [], []
+    for r in range(config.busy_repeats):
+        quiet.append(_timed_run(bundle, method, storyboard, r, index))
+        with CompetingLoad():
+            busy.append(_timed_run(bundle, method, storyboard, r, index))
+        if log:
+            log(f"speed {method.label} quiet / beside a busy loop (round {r + 1}): "
+                f"{quiet[-1]['wall_s']:.2f} / {busy[-1]['wall_s']:.2f} s")
+    out = {"method": method.key, "quiet": _medians(quiet), "busy": _medians(busy), "target": config.busy_target}
+    out["ratio"] = out["busy"]["wall_s"] / out["quiet"]["wall_s"]
+    out["met"] = out["ratio"] <= config.busy_target
+    return out
 
 
 def without_object(sb: Storyboard) -> Storyboard:
@@ -122,6 +160,8 @@ def speed_table(bundle, methods: tuple[Method, ...], scaling_methods: tuple[Meth
                 if log:
                     log(f"speed {m.label} (round {r + 1}): {runs[m.key][-1]['wall_s']:.2f} s")
     out["per_method"] = {key: _medians(method_runs) for key, method_runs in runs.items()}
+    if config.busy_repeats:
+        out["busy"] = beside_busy_process(bundle, methods[0], base, config, index, log)
     for m in scaling_methods:
         out["length"][m.key] = {f"{s:g}": measure(bundle, m, storyboards_by_length[s], config.scaling_repeats,
                                                   index)["wall_s"] for s in config.lengths_s}

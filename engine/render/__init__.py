@@ -9,10 +9,10 @@ in the repository's shaders/ directory. sheets.py writes contact sheets and GIFs
 `python -m engine.render.benchmark` times the viewport's frames.
 """
 from .camera import OrbitCamera
-from .context import RenderUnavailableError, shared_context
+from .context import RenderUnavailableError, is_software, shared_context
 from .renderer import RenderConfig, SceneRenderer
 from .scene import PlacedObject, Polyline, SceneOptions, SceneState, lift_storyboard_paths, scene_from_clip
 
 __all__ = ["OrbitCamera", "PlacedObject", "Polyline", "RenderConfig", "RenderUnavailableError",
-           "SceneOptions", "SceneRenderer", "SceneState", "lift_storyboard_paths", "scene_from_clip",
-           "shared_context"]
+           "SceneOptions", "SceneRenderer", "SceneState", "is_software", "lift_storyboard_paths",
+           "scene_from_clip", "shared_context"]

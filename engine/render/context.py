@@ -35,6 +35,13 @@ def shared_context() -> moderngl.Context:
     return _shared
 
 
+def is_software(ctx: moderngl.Context) -> bool:
+    """Whether the context rasterizes on the CPU (Mesa llvmpipe or softpipe): drawing then takes
+    the cores that generation would otherwise use."""
+    renderer = str(ctx.info.get("GL_RENDERER", "")).lower()
+    return any(name in renderer for name in ("llvmpipe", "softpipe", "swrast", "software"))
+
+
 INCLUDE = re.compile(r'^#include "([^"]+)"[ \t]*$', re.MULTILINE)
 
 

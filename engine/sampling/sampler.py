@@ -35,6 +35,7 @@ import torch
 
 from ..clip import MotionClip
 from ..controls import build_controls
+from ..cpu import ThreadBudget
 from ..dataset import MODEL_FPS, NUM_HUMANS, fixed_controls
 from ..finishing import finish
 from ..io.resample import resample_clip, resample_linear
@@ -85,7 +86,9 @@ class SamplerConfig:
     finish: bool = True             # engine.finishing on the final clips ("w/o finishing")
     check_surrogate: bool = False   # also take the exact gradient through the decoder and report
                                     # its cosine to B_rho's as the energy "surrogate_cosine" (slower)
-    threads: int | None = None      # torch threads for this run (None: leave as is)
+    threads: int | None = None      # torch threads (None: engine.cpu chooses from the free cores, and
+                                    # re-chooses between steps as other programs' load changes)
+    reserve_cores: float = 0.0      # cores to leave to the caller's own other work (the app's drawing)
 
 
 class Bundle(Protocol):
@@ -110,13 +113,21 @@ def sample(bundle: Bundle, storyboard: Storyboard,
     if len(storyboard.agents) > NUM_HUMANS or len(storyboard.objects) > 1:
         raise SamplerError(f"the model animates at most {NUM_HUMANS} people and 1 object; the storyboard has "
                            f"{len(storyboard.agents)} people and {len(storyboard.objects)} objects")
-    if config.threads:
-        torch.set_num_threads(config.threads)
+    threads = ThreadBudget(config.threads, config.reserve_cores)
+    threads.adjust()
     run = _Run(bundle, storyboard, config)
     with torch.no_grad():
-        if config.method == "student":
-            return (yield from run.student())
-        return (yield from run.teacher())
+        steps = run.student() if config.method == "student" else run.teacher()
+        try:
+            while True:
+                try:
+                    event = next(steps)
+                except StopIteration as done:
+                    return done.value
+                yield event
+                threads.adjust()
+        finally:
+            steps.close()
 
 
 class _Run:

@@ -21,7 +21,7 @@ class TrainConfig:
     checkpoint_every_s: float = 180.0
     log_every: int = 10
     num_workers: int = 0
-    threads: int = 2                 # torch CPU threads per process
+    threads: int | None = None       # torch CPU threads (None: engine.cpu chooses, and re-chooses as load changes)
     surrogate_init_latents: int = 8  # data latents whose decoder Jacobians initialise B_rho
     model: ModelConfig = field(default_factory=ModelConfig.default)
     stage_lr: dict = field(default_factory=lambda: {"vqvae": 5e-4, "student1": 1e-4, "student2": 1e-4,
@@ -41,7 +41,7 @@ def default_config() -> TrainConfig:
 
 def large_config() -> TrainConfig:
     """The paper's settings (batch 64, EMA 0.999, lr 2e-4 teacher / 1e-4 student) on a GPU."""
-    return TrainConfig(steps=400_000, batch_size=64, num_workers=8, threads=8, checkpoint_every_s=600.0,
+    return TrainConfig(steps=400_000, batch_size=64, num_workers=8, checkpoint_every_s=600.0,
                        model=ModelConfig.large(), stage_steps={"student1": 250_000, "student2": 250_000})
 
 

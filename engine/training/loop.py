@@ -21,6 +21,7 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader, Dataset
 from tqdm import tqdm
 
+from ..cpu import ThreadBudget
 from . import checkpoint
 from .config import STAGES, TrainConfig
 from .ema import EMA
@@ -139,8 +140,10 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
     log = open(run_dir / "log.jsonl", "a") if rank == 0 else None
     last_save, terms, step = time.monotonic(), {}, start
     model.train()
+    threads = ThreadBudget(cfg.threads, every_s=10.0)
     try:
         for step, batch in enumerate(loader, start):
+            threads.adjust()
             for group in opt.param_groups:
                 group["lr"] = lr * min(1.0, (step + 1) / max(cfg.warmup_steps, 1))
             g = torch.Generator(device).manual_seed((cfg.seed * 1_000_003 + step) * 64 + rank)
@@ -181,7 +184,6 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
 def train(stage: str, cfg: TrainConfig, dataset: Dataset, runs: str | Path = "runs", resume: bool = False,
           progress: bool = True) -> dict:
     """Train one stage, or every stage in order for 'all'. Returns {stage: final metrics}."""
-    torch.set_num_threads(cfg.threads)
     runs = Path(runs)
     results = {}
     for name in (STAGES if stage == "all" else (stage,)):

@@ -1,8 +1,11 @@
-"""GUI tests run headless: the platform must be chosen before Qt loads."""
+"""GUI tests run headless, on one 1366 x 768 screen (a laptop's): the platform must be chosen
+before Qt loads."""
 import gc
 import os
+from pathlib import Path
 
-os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+if os.environ.get("QT_QPA_PLATFORM", "offscreen") == "offscreen":
+    os.environ["QT_QPA_PLATFORM"] = f"offscreen:configfile={Path(__file__).with_name('laptop_screen.json')}"
 
 import pytest  # noqa: E402
 from PySide6.QtCore import QSettings, QThread  # noqa: E402

@@ -249,3 +249,31 @@ def test_the_view_says_when_the_sketch_changed_since_its_motion(qtbot, make_wind
         qtbot.waitUntil(lambda: len(slow.yielded) >= 1, timeout=5000)
         doc.undo_stack.push(cmd.SetTiming(doc, 30.0))
     assert view.notice == OUTDATED_NOTICE
+
+
+def test_the_cpu_threads_preference_reaches_the_sampler_and_is_kept(qtbot, make_window):
+    """Generate > CPU Threads, clicked: the next generation asks for that many threads (and leaves
+    a core to software OpenGL's drawing); a new window starts with the same choice."""
+    seen = []
+    fake = FakeSampler()
+
+    def recording(storyboard, settings):
+        seen.append(settings)
+        return fake(storyboard, settings)
+
+    window = make_window(generate=recording)
+    menu = window.threads_menu
+    menu.popup(window.mapToGlobal(window.rect().center()))
+    qtbot.waitExposed(menu)
+    qtbot.mouseClick(menu, Qt.LeftButton, pos=menu.actionGeometry(window.threads_actions[1]).center())
+    assert window.threads_actions[1].isChecked() and window.threads_preference() == 1
+    window.generate()
+    qtbot.waitUntil(lambda: not window.runner.running, timeout=10_000)
+    assert seen[-1].threads == 1
+    assert seen[-1].reserve_cores == (1.0 if window.viewport.draws_on_cpu() else 0.0)
+    assert make_window().threads_actions[1].isChecked()
+
+    window.threads_actions[0].trigger()
+    window.generate()
+    qtbot.waitUntil(lambda: not window.runner.running, timeout=10_000)
+    assert seen[-1].threads is None

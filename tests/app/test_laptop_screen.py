@@ -1,0 +1,66 @@
+"""The main window on a 1366 x 768 laptop screen: it fits, every panel keeps the room it needs
+without overlapping another, and the layout the artist left is there on the next start."""
+from PySide6.QtCore import QRect, QSize, Qt
+from PySide6.QtWidgets import QDockWidget
+
+# What a 1366 x 768 screen leaves a window: a desktop panel (32 px) and the title bar (30 px).
+LAPTOP_ROOM = QSize(1366, 768 - 32 - 30)
+
+
+def _in_window(window, widget) -> QRect:
+    return QRect(widget.mapTo(window, widget.rect().topLeft()), widget.size())
+
+
+def test_the_tests_run_on_a_laptop_screen(qapp):
+    assert qapp.primaryScreen().availableGeometry().size() == QSize(1366, 768)
+
+
+def test_the_window_fits_and_no_panel_overlaps_another(qtbot, make_window):
+    window = make_window()
+    qtbot.waitExposed(window)
+    assert window.screen().availableGeometry().contains(window.frameGeometry())
+    smallest = window.minimumSizeHint()
+    assert smallest.width() <= 1280 and smallest.height() <= 720
+
+    window.showNormal()
+    window.resize(LAPTOP_ROOM)
+    qtbot.waitUntil(lambda: window.size() == LAPTOP_ROOM)
+    panels = {"canvas": window.canvas, **{d.objectName(): d for d in window.findChildren(QDockWidget)}}
+    rects = {name: _in_window(window, w) for name, w in panels.items()}
+    names = list(rects)
+    for i, a in enumerate(names):
+        assert window.rect().contains(rects[a]), a
+        for b in names[i + 1:]:
+            assert not rects[a].intersects(rects[b]), (a, b)
+    for dock in window.findChildren(QDockWidget):
+        inner, needed = dock.widget().size(), dock.widget().minimumSizeHint()
+        assert inner.width() >= needed.width() and inner.height() >= needed.height(), dock.objectName()
+    assert window.canvas.width() >= 300 and window.canvas.height() >= 300
+
+
+def test_every_property_is_reachable_by_scrolling(qtbot, make_window):
+    window = make_window()
+    window.showNormal()
+    window.resize(LAPTOP_ROOM)
+    qtbot.waitUntil(lambda: window.size() == LAPTOP_ROOM)
+    scroll = window.properties_dock.widget()
+    last = window.properties.variation            # the lowest field of the panel
+    scroll.ensureWidgetVisible(last)
+    visible = QRect(last.mapTo(scroll.viewport(), last.rect().topLeft()), last.size())
+    assert scroll.viewport().rect().contains(visible)
+    assert window.properties.width() >= window.properties.minimumSizeHint().width()   # nothing clipped sideways
+
+
+def test_the_layout_is_restored_on_the_next_start(qtbot, make_window):
+    window = make_window()
+    window.showNormal()
+    window.resize(1200, 680)
+    window.resizeDocks([window.properties_dock], [460], Qt.Horizontal)
+    window.viewport_dock.close()
+    qtbot.waitUntil(lambda: not window.viewport_dock.isVisible() and window.properties_dock.width() == 460)
+    window.close()
+
+    again = make_window()
+    qtbot.waitExposed(again)
+    assert again.size() == QSize(1200, 680)
+    assert not again.viewport_dock.isVisible() and again.properties_dock.width() == 460
