@@ -51,13 +51,13 @@ def _bundle():
 def start_generation(storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
     """Stream one generation. Nothing runs until the first next(), so the model loads on the
     worker thread, never on the GUI thread; closing the generator cancels between steps."""
-    from engine.sampling.sampler import STEADY_GUIDANCE_RATE, SamplerConfig, sample
-    config = SamplerConfig(steps=settings.steps, seed=settings.seed, cfg=settings.cfg,
-                           use_energy=settings.use_energy, use_ctmc=settings.use_ctmc,
-                           guidance_max_rate=STEADY_GUIDANCE_RATE if settings.steady else None,
-                           variations=settings.variations, threads=settings.threads,
-                           reserve_cores=settings.reserve_cores)
-    return (yield from sample(_bundle(), storyboard, config))
+    from engine.request import Request
+    from engine.sampling.config import sampler_config
+    from engine.sampling.sampler import sample
+    config = sampler_config(steps=settings.steps, seed=settings.seed, cfg=settings.cfg, variations=settings.variations,
+                            energy=settings.use_energy, ctmc=settings.use_ctmc, steady=settings.steady,
+                            threads=settings.threads, reserve_cores=settings.reserve_cores)
+    return (yield from sample(_bundle(), Request.build(storyboard, config)))
 
 
 def warm_up(storyboard_path: Path, steps: int = 2) -> None:

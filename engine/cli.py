@@ -92,13 +92,15 @@ def cmd_bundle(args) -> int:
 
 
 def _sampler_config(args):
-    from .sampling.sampler import STEADY_GUIDANCE_RATE, SamplerConfig
+    from .sampling.config import SamplerError, sampler_config
     if args.steps < 1 or args.variations < 1:
         raise UserError("--steps and --variations must be at least 1")
-    return SamplerConfig(steps=args.steps, seed=args.seed, cfg=args.cfg,
-                         method="student" if args.method == "retrieval" else args.method,
-                         variations=args.variations, use_energy=not args.no_energy, use_ctmc=not args.no_ctmc,
-                         finish=not args.no_finish, guidance_max_rate=STEADY_GUIDANCE_RATE if args.steady else None)
+    try:
+        return sampler_config(method="student" if args.method == "retrieval" else args.method, steps=args.steps,
+                              seed=args.seed, cfg=args.cfg, variations=args.variations, energy=not args.no_energy,
+                              ctmc=not args.no_ctmc, finish=not args.no_finish, steady=args.steady)
+    except SamplerError as e:
+        raise UserError(str(e)) from None
 
 
 def cmd_generate(args) -> int:
@@ -107,7 +109,7 @@ def cmd_generate(args) -> int:
     from .export import export_requested
     from .generate import generate, print_summary, summary, write_outputs
     from .models.bundle import BundleError, load_bundle, load_default
-    from .sampling.sampler import SamplerError
+    from .sampling.config import SamplerError
     from .storyboard import Storyboard
     sb = Storyboard.load(args.storyboard)
     config = _sampler_config(args)
@@ -132,8 +134,8 @@ def cmd_demo(args) -> int:
     import json
 
     from .demo import run_demo
-    from .sampling.sampler import SamplerConfig
-    for row in run_demo(args.output, SamplerConfig(steps=args.steps, seed=args.seed), render=not args.no_render):
+    from .sampling.config import sampler_config
+    for row in run_demo(args.output, sampler_config(steps=args.steps, seed=args.seed), render=not args.no_render):
         print(json.dumps(row))
     print(f"results in {args.output}/", file=sys.stderr)
     return 0

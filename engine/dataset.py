@@ -39,13 +39,12 @@ import torch
 from torch.utils.data import Dataset
 
 from .clip import ClipError, MotionClip
-from .controls import Controls, build_controls
+from .controls import build_controls
+from .models.slots import MODEL_FPS, NUM_HUMANS, fixed_controls
 from .io.resample import resample_clip
 from .objects import NUM_ANCHORS
 from .rotations import matrix_to_quat, quat_to_matrix
 from .sketchify import SketchifyConfig, sketchify
-
-NUM_HUMANS = 2
 
 # CMU salsa takes (lead/follow pair) that training never sees. Take 10 is the held-out pair
 # because it is the shortest (1197 frames at 120 fps, ~10 s), so holding it out costs the least
@@ -53,7 +52,6 @@ NUM_HUMANS = 2
 # the others, and its only known defect (a tremble in the first seconds) is easy to trim in
 # evaluation, while takes 06, 07 and 09 have head or shoe errors that would pollute a test set.
 HELD_OUT_SALSA_TAKES = ("60_10/61_10",)
-MODEL_FPS = 20.0   # the models learn motion at this rate; the sampler animates other rates through it
 
 
 @dataclass
@@ -221,21 +219,3 @@ def _motion_arrays(clip: MotionClip) -> dict[str, np.ndarray]:
         "contact_label": np.asarray(clip.contact if labelled else np.zeros((n, NUM_HUMANS, 2)), np.float32),
         "has_labels": np.float32(labelled),
     }
-
-
-def fixed_controls(controls: Controls) -> dict[str, np.ndarray]:
-    """Controls padded to the model's slots (2 humans, 1 object); masks as 0/1 float32.
-    Padded slots are empty (all masks 0, contact_anchor -1)."""
-    out = {}
-    for f in fields(Controls):
-        v = getattr(controls, f.name)
-        if f.name.startswith("obj") and v.shape[1] == 0:
-            v = np.zeros((v.shape[0], 1) + v.shape[2:], v.dtype)
-        if f.name in _PER_HUMAN and v.shape[1] < NUM_HUMANS:
-            pad = np.full((v.shape[0], NUM_HUMANS - v.shape[1]) + v.shape[2:], -1 if f.name == "contact_anchor" else 0, v.dtype)
-            v = np.concatenate([v, pad], 1)
-        out[f.name] = v.astype(np.int64 if f.name == "contact_anchor" else np.float32)
-    return out
-
-
-_PER_HUMAN = ("kp2d", "kp_mask", "tr2d", "tr_mask", "contact", "contact_anchor")

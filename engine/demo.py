@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from .generate import generate, summary
-from .sampling.sampler import SamplerConfig
+from .sampling.config import SamplerConfig
 from .storyboard import Storyboard
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "resources" / "examples"

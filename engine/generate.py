@@ -62,8 +62,9 @@ def generate(storyboard: Storyboard, config, bundle=None, method: str = "student
         gen = retrieval_generator(storyboard, config.seed)
     else:
         from .models.bundle import load_default
+        from .request import Request
         from .sampling.sampler import sample
-        gen = sample(bundle or load_default(), storyboard, config)
+        gen = sample(bundle or load_default(), Request.build(storyboard, config))
     return run_generation(gen, None if quiet else sys.stderr, log_steps)
 
 

@@ -16,7 +16,9 @@ from ..baselines.retrieval import RetrievalIndex, sample_retrieval
 from ..clip import MotionClip
 from ..generate import run_generation
 from ..metrics import adherence, brier_score, contact_f1, diversity, expected_calibration_error
-from ..sampling.sampler import STEADY_GUIDANCE_RATE, SamplerConfig, sample
+from ..request import Request
+from ..sampling.config import STEADY_GUIDANCE_RATE, SamplerConfig
+from ..sampling.sampler import sample
 from ..storyboard import Storyboard
 from .protocol import BenchItem, Protocol
 
@@ -90,7 +92,7 @@ def generate(bundle, method: Method, storyboard: Storyboard, seed: int = 0, vari
             raise ValueError("the retrieval baseline needs an index")
         runs = [run_generation(sample_retrieval(index, storyboard, seed=seed + k), None) for k in range(variations)]
         return Generation([r.clips[0] for r in runs], sum(r.wall_time_s for r in runs), runs[0].first_step_s, 0)
-    gen = sample(bundle, storyboard, replace(method.sampler, seed=seed, variations=variations))
+    gen = sample(bundle, Request.build(storyboard, replace(method.sampler, seed=seed, variations=variations)))
     steps = []
     try:
         while True:

@@ -22,7 +22,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..clip import MotionClip
-from ..dataset import MODEL_FPS
 from ..rotations import matrix_to_6d
 from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
@@ -32,7 +31,7 @@ from .keys import key_frames
 from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
 
 
-TUNED_FPS = MODEL_FPS   # the configs' durations (their DURATIONS fields) are frames at this rate
+TUNED_FPS = 20.0   # the configs' durations (their DURATIONS fields) are frames at this rate
 
 
 @dataclass

@@ -1,5 +1,5 @@
-"""VP diffusion teacher: noise schedule, epsilon-prediction loss, probability-flow velocity,
-classifier-free guidance and DDPM / DDIM samplers written as generators (the caller owns the loop).
+"""VP diffusion teacher: noise schedule, epsilon-prediction loss and probability-flow velocity.
+Its DDPM and DDIM steps are solvers (engine.sampling.solvers); the sampler owns the loop.
 
 Diffusion time tau in [0, 1] (0 = data). The schedule is the continuous form of DDPM's linear
 betas: beta(tau) = beta_min + tau (beta_max - beta_min), alpha_bar(tau) = exp(-int_0^tau beta),
@@ -9,7 +9,7 @@ z_tau = sqrt(abar) z_0 + sqrt(1 - abar) eps.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Iterator
+from typing import Callable
 
 import torch
 from torch import nn
@@ -91,103 +91,3 @@ def pf_velocity(eps_field: Field, schedule: VPSchedule, z: torch.Tensor, tau: to
     beta = broadcast(schedule.beta(tau), z)
     sigma = broadcast((-torch.expm1(schedule.log_alpha_bar(tau))).sqrt(), z)
     return -0.5 * beta * (z - eps / sigma)
-
-
-class ClassifierFreeGuidance:
-    """Wraps a field f(z, time, cond, entity_pos) into uncond + w (cond - uncond).
-    Conditional and unconditional passes run as one batch of 2B. With cond None or w == 1 it is
-    the plain conditional field."""
-
-    def __init__(self, field: Field, weight: float = 1.6):
-        self.field, self.weight = field, weight
-
-    def __call__(self, z: torch.Tensor, time: torch.Tensor, cond: Conditioning | None = None,
-                 entity_pos: torch.Tensor | None = None) -> torch.Tensor:
-        if cond is None or self.weight == 1.0:
-            return self.field(z, time, cond, entity_pos)
-        b = z.shape[0]
-        time = torch.as_tensor(time, dtype=z.dtype, device=z.device).expand(b)
-        drop = torch.zeros(b, dtype=torch.bool, device=z.device) if cond.drop is None else cond.drop
-        both = Conditioning(residual=cond.residual.repeat(2, 1, 1, 1),
-                            temporal_bias=cond.temporal_bias.repeat(2, 1, 1),
-                            embed=cond.embed.repeat(2, 1),
-                            drop=torch.cat([drop, torch.ones_like(drop)]))
-        pos = None if entity_pos is None else entity_pos.repeat(2, 1, 1, 1)
-        out = self.field(z.repeat(2, 1, 1, 1), time.repeat(2), both, pos)
-        cond_out, uncond_out = out[:b], out[b:]
-        return uncond_out + self.weight * (cond_out - uncond_out)
-
-
-@dataclass
-class DiffusionStep:
-    index: int              # 0-based step number
-    num_steps: int
-    tau: float              # diffusion time after this step
-    z: torch.Tensor         # (B, T, V, d) current latent
-    z0_hat: torch.Tensor    # (B, T, V, d) the clean-latent estimate at this step
-
-
-LATENT_CLIP = 4.0  # the latent has unit variance: a clean estimate beyond 4 std is an error
-
-
-def clean_estimate(z: torch.Tensor, eps: torch.Tensor, a_t: torch.Tensor,
-                   clip: float | None = LATENT_CLIP) -> tuple[torch.Tensor, torch.Tensor]:
-    """z0_hat from z_tau and the predicted noise, clipped to [-clip, clip], and the noise made
-    consistent with the clipped estimate. At high noise z0_hat = (z - sqrt(1-a) eps) / sqrt(a)
-    multiplies any error in eps by 1/sqrt(a) (~150 at tau = 1), which clipping contains
-    (as DDPM's clip_denoised does)."""
-    z0_hat = (z - (1 - a_t).sqrt() * eps) / a_t.sqrt()
-    if clip is None:
-        return z0_hat, eps
-    z0_hat = z0_hat.clamp(-clip, clip)
-    return z0_hat, (z - a_t.sqrt() * z0_hat) / (1 - a_t).sqrt()
-
-
-def ddpm_sample(eps_field: Field, schedule: VPSchedule, shape: tuple[int, ...],
-                cond: Conditioning | None = None, entity_pos: torch.Tensor | None = None,
-                generator: torch.Generator | None = None, clip: float | None = LATENT_CLIP) -> Iterator[DiffusionStep]:
-    """Ancestral DDPM over all `schedule.steps` discrete steps. Yields a DiffusionStep per step;
-    the last one's z is the sample."""
-    n = schedule.steps
-    taus = torch.arange(1, n + 1, dtype=torch.float32) / n
-    abar = schedule.alpha_bar(taus)
-    z = torch.randn(shape, generator=generator)
-    for k, i in enumerate(reversed(range(n))):
-        a_t = abar[i]
-        a_prev = abar[i - 1] if i > 0 else torch.tensor(1.0)
-        alpha = a_t / a_prev
-        with torch.no_grad():
-            eps = eps_field(z, taus[i].expand(shape[0]), cond, entity_pos)
-        z0_hat, eps = clean_estimate(z, eps, a_t, clip)
-        mean = (z - (1 - alpha) / (1 - a_t).sqrt() * eps) / alpha.sqrt()
-        if i > 0:
-            var = (1 - alpha) * (1 - a_prev) / (1 - a_t)
-            z = mean + var.sqrt() * torch.randn(shape, generator=generator)
-        else:
-            z = mean
-        yield DiffusionStep(k, n, float(taus[i - 1]) if i > 0 else 0.0, z, z0_hat)
-
-
-def ddim_sample(eps_field: Field, schedule: VPSchedule, shape: tuple[int, ...], num_steps: int = 50,
-                cond: Conditioning | None = None, entity_pos: torch.Tensor | None = None,
-                generator: torch.Generator | None = None, clip: float | None = LATENT_CLIP) -> Iterator[DiffusionStep]:
-    """Deterministic DDIM (eta = 0) on `num_steps` evenly spaced taus from 1 to 0; only the
-    initial noise is random, so a seeded generator gives the same sample every time."""
-    taus = torch.linspace(1.0, 0.0, num_steps + 1)
-    z = torch.randn(shape, generator=generator)
-    for k in range(num_steps):
-        tau, tau_next = taus[k].clamp_min(schedule.tau_min), taus[k + 1]
-        a_t, a_next = schedule.alpha_bar(tau), schedule.alpha_bar(tau_next)
-        with torch.no_grad():
-            eps = eps_field(z, tau.expand(shape[0]), cond, entity_pos)
-        z0_hat, eps = clean_estimate(z, eps, a_t, clip)
-        z = a_next.sqrt() * z0_hat + (1 - a_next).sqrt() * eps
-        yield DiffusionStep(k, num_steps, float(tau_next), z, z0_hat)
-
-
-def run_to_end(steps: Iterator[DiffusionStep]) -> torch.Tensor:
-    """Drive a sampler generator to its end and return the final latent."""
-    last = None
-    for last in steps:
-        pass
-    return last.z

@@ -6,6 +6,7 @@ from PySide6.QtCore import QElapsedTimer, Qt, QTimer
 
 from app import commands as cmd
 from app.main import NO_DISPLAY, main
+from engine.sampling.config import STEADY_GUIDANCE_RATE
 
 from .fakes import FakeSampler, sample_storyboard
 
@@ -190,8 +191,8 @@ def test_the_steady_checkbox_reaches_the_sampler(make_window, monkeypatch):
     assert window.doc.settings.steady
     seen = []
 
-    def record(bundle, storyboard, config):
-        seen.append(config)
+    def record(bundle, request):
+        seen.append(request.config)
         return None
         yield
 
@@ -201,7 +202,7 @@ def test_the_steady_checkbox_reaches_the_sampler(make_window, monkeypatch):
         stream = app.generation.start_generation(sample_storyboard(), window.doc.settings.__class__(steady=steady))
         with pytest.raises(StopIteration):
             next(stream)
-    assert [c.guidance_max_rate for c in seen] == [sampler.STEADY_GUIDANCE_RATE, None]
+    assert [c.guidance_max_rate for c in seen] == [STEADY_GUIDANCE_RATE, None]
 
 
 def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window):

@@ -2,7 +2,7 @@
 import torch
 
 from engine.models.vqvae import EntityVQVAE, VQVAEConfig, mean_joint_error
-from model_fixtures import fake_batch
+from tests.engine.fixtures import fake_batch
 
 torch.set_num_threads(1)
 SMALL = VQVAEConfig(channels=32, codebook_size=64)

@@ -14,7 +14,7 @@ from engine.dataset import (HELD_OUT_SALSA_TAKES, DatasetConfig, StoryboardWindo
                             split_files)
 from engine.rotations import sixd_to_matrix
 from engine.skeleton import REST_OFFSETS, forward_kinematics
-from test_sketchify import carry_clip, handshake_clip
+from tests.engine.test_sketchify import carry_clip, handshake_clip
 
 EXACT = DatasetConfig(noise_range=(0.0, 0.0))
 

@@ -8,7 +8,9 @@ import torch
 
 from engine.models.bundle import ModelConfig, untrained_bundle
 from engine.models.teacher import VPSchedule
-from engine.sampling.sampler import SamplerConfig, SamplerError, sample
+from engine.request import Request
+from engine.sampling.config import SamplerConfig, SamplerError
+from engine.sampling.sampler import sample as sample_request
 from engine.storyboard import Agent, Storyboard
 from engine.metrics import adherence
 
@@ -24,6 +26,13 @@ def bundle():
 @pytest.fixture(scope="module")
 def storyboard():
     return Storyboard.load(EXAMPLE)
+
+
+def sample(bundle, storyboard, config):
+    """The sampler on a request built from the storyboard (raises when the first step is asked
+    for, as a generator: the request is built inside it)."""
+    yield from ()
+    return (yield from sample_request(bundle, Request.build(storyboard, config)))
 
 
 def drain(gen):

@@ -7,7 +7,7 @@ from engine.models.student import (LossWeights, RectifiedFlowStudent, combine_lo
                                    teacher_velocity_in_t, time_map, time_map_valid)
 from engine.models.teacher import DiffusionTeacher, VPSchedule
 from engine.models.unet import TemporalUNet, UNetConfig
-from model_fixtures import fake_conditioning
+from tests.engine.fixtures import fake_conditioning
 
 torch.set_num_threads(1)
 TINY = UNetConfig(channels=(16, 16, 16, 16), embed_dim=32, heads=2)

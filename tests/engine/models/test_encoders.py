@@ -8,7 +8,7 @@ from engine.models.encoders import (EncoderConfig, LatentProjectionHead, SketchC
                                     condition_presence, frames_to_latent, info_nce, keyframe_gate,
                                     latent_alignment_loss, latent_energy, lift_loss, path_phase)
 from engine.skeleton import JOINT_INDEX
-from model_fixtures import fake_batch
+from tests.engine.fixtures import fake_batch
 
 torch.set_num_threads(1)
 N, T_LAT = 120, 30

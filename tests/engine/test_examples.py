@@ -10,7 +10,7 @@ import torch
 from engine.generate import generate
 from engine.metrics import adherence
 from engine.models.bundle import load_default
-from engine.sampling.sampler import SamplerConfig
+from engine.sampling.config import SamplerConfig
 from engine.skeleton import FEET
 from engine.storyboard import Storyboard
 

@@ -3,7 +3,7 @@
 import torch
 
 from engine.models.unet import TemporalUNet, UNetConfig, count_parameters
-from model_fixtures import fake_conditioning
+from tests.engine.fixtures import fake_conditioning
 
 torch.set_num_threads(1)
 

@@ -17,7 +17,7 @@ from engine.training.ema import EMA
 from engine.training.export import bundle_from_runs
 from engine.training.loop import StepBatches, train
 from engine.training.stages import StageUnavailable
-from model_fixtures import FakeClips
+from tests.engine.fixtures import FakeClips
 
 torch.set_num_threads(1)
 TINY_UNET = UNetConfig(channels=(16, 16, 16, 16), embed_dim=32, heads=2)

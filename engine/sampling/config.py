@@ -1,0 +1,67 @@
+"""What a generation is asked to do (SamplerConfig), and the one place that builds it from a
+person's choices: the command line, the app's settings and the demo call `sampler_config`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+METHODS = ("student", "teacher-ddpm", "teacher-ddim")
+# guidance_max_rate of "steady" generation (the app's Steady checkbox, generate --steady);
+# BENCHMARKS.md compares it with the default ("Ours, steady"; stroke-nudge stability).
+STEADY_GUIDANCE_RATE = 5.0
+
+
+class SamplerError(ValueError):
+    """A request the sampler cannot serve (one line, for the user)."""
+
+
+@dataclass
+class SamplerConfig:
+    steps: int = 30                 # Heun steps (student) or DDIM steps (teacher-ddim)
+    seed: int = 0
+    cfg: float = 1.6                # classifier-free guidance weight
+    method: str = "student"
+    variations: int = 1             # K samples drawn at once (one batch)
+    use_energy: bool = True         # raw-space energy guidance (ablation "w/o Energy")
+    use_ctmc: bool = True           # CTMC mixing of sub-fields and contact gating ("w/o CTMC")
+    use_latent: bool = True         # latent grounding E_lat ("w/o latent grounding")
+    use_temporal_bias: bool = True  # trajectory attention bias ("w/o temporal bias")
+    trajectory_only: bool = False   # only the trajectory energy ("trajectory-only")
+    ctmc_every: int = 3
+    guidance_steps: int = 1         # energy steps on z0_hat per solver step
+    guidance_start: float = 0.7     # guide only once t <= this (near noise the network re-predicts
+                                    # z0_hat almost regardless of z, so early guidance is mostly lost)
+    guidance_alpha: float = 1.0     # damping of the Polyak step (1: the full linearised step)
+    guidance_max_rms: float = 0.25  # cap on one step's RMS change, latent units
+    guidance_max_rate: float | None = None  # cap on the Polyak rate E / |g|^2 during the ODE
+                                    # (STEADY_GUIDANCE_RATE: steadier under edits, more foot skate)
+    latent_weight: float = 0.01     # eta_lat, weight of E_lat against the raw energies (f_gamma's
+                                    # regression pulls towards an average motion: at 0.05, K3D +0.4 cm)
+    final_refine_steps: int = 4     # extra energy steps on the final latent (physics stage)
+    langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
+    langevin_step_size: float = 1e-3
+    finish: bool = True             # engine.finishing on the final clips ("w/o finishing")
+    check_surrogate: bool = False   # also take the exact gradient through the decoder and report
+                                    # its cosine to B_rho's as the energy "surrogate_cosine" (slower)
+    threads: int | None = None      # torch threads (None: engine.cpu chooses from the free cores, and
+                                    # re-chooses between steps as other programs' load changes)
+    reserve_cores: float = 0.0      # cores to leave to the caller's own other work (the app's drawing)
+
+    def check(self) -> None:
+        """SamplerError for settings no generation can run with."""
+        if self.method not in METHODS:
+            raise SamplerError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
+        if self.steps < 1 or self.variations < 1:
+            raise SamplerError("steps and variations must be at least 1")
+
+
+def sampler_config(*, method: str = "student", steps: int = 30, seed: int = 0, cfg: float = 1.6,
+                   variations: int = 1, energy: bool = True, ctmc: bool = True, finish: bool = True,
+                   steady: bool = False, threads: int | None = None, reserve_cores: float = 0.0) -> SamplerConfig:
+    """A SamplerConfig from the choices a person makes (checked: SamplerError on a bad one)."""
+    config = SamplerConfig(steps=steps, seed=seed, cfg=cfg, method=method, variations=variations,
+                           use_energy=energy, use_ctmc=ctmc, finish=finish,
+                           guidance_max_rate=STEADY_GUIDANCE_RATE if steady else None,
+                           threads=threads, reserve_cores=reserve_cores)
+    config.check()
+    return config
