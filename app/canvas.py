@@ -13,13 +13,14 @@ from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QWidget
 
+from engine.geometry.polylines import point_polyline_distance
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 from engine.storyboard import SKETCH_LIMIT_M, Contact, ObjectPath, Trajectory
 
 from . import commands as cmd
 from .document import OBJECT_PATH, Document
 from .poses import standing_pose_2d
-from .strokes import clean_stroke, distance_to_polyline, splice
+from .strokes import clean_stroke, splice
 
 HIT_PX = 9.0            # how close (pixels) a click must be to a joint, stroke or anchor
 FRAME_MARGIN_PX = 40.0  # free border around the sketch when framing it
@@ -176,7 +177,7 @@ class SketchCanvas(QWidget):
         sb = self._doc.storyboard
         for field_name in ("trajectories", "object_paths"):
             for i, s in enumerate(getattr(sb, field_name)):
-                if distance_to_polyline(s.points, uv) < self._hit():
+                if point_polyline_distance([uv], s.points)[0] < self._hit():
                     return field_name, i
         return None
 
@@ -211,7 +212,7 @@ class SketchCanvas(QWidget):
     def _contact_at(self, uv) -> int | None:
         for i, c in enumerate(self._doc.storyboard.contacts):
             ends = self._contact_ends(c)
-            if ends is not None and distance_to_polyline(ends, uv) < self._hit():
+            if ends is not None and point_polyline_distance([uv], ends)[0] < self._hit():
                 return i
         return None
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.controls import resample_polyline
+from engine.geometry.polylines import resample_polyline
 
 SPACING = 0.04   # metres between stored stroke points: smooth enough, small files
 
@@ -37,16 +37,6 @@ def closest_point(polyline: np.ndarray, p) -> tuple[int, float]:
     d = np.linalg.norm(polyline - np.asarray(p, float), axis=-1)
     i = int(np.argmin(d))
     return i, float(d[i])
-
-
-def distance_to_polyline(polyline: np.ndarray, p) -> float:
-    """Shortest distance from p (2,) to the segments of a polyline (L, 2)."""
-    p = np.asarray(p, float)
-    a, b = polyline[:-1], polyline[1:]
-    ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
-    return float(np.min(np.linalg.norm(a + t[:, None] * ab - p, axis=-1))) if len(a) else float(
-        np.linalg.norm(polyline[0] - p))
 
 
 def splice(existing: np.ndarray, stroke: np.ndarray, snap: float) -> np.ndarray | None:

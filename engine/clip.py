@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .rotations import matrix_to_6d
+from .geometry.rotations import matrix_to_6d
 from .skeleton import NUM_JOINTS, REST_OFFSETS, fit_offsets, inverse_kinematics
 
 PHASES = ("approach", "contact", "carry")

@@ -26,9 +26,9 @@ import numpy as np
 
 from .clip import MotionClip
 from .io.bvh_export import write_bvh
-from .metrics import JOINT_RADII
+from .body import JOINT_RADII
 from .objects import DEFAULT_SIZES, ObjectSpec, local_to_world
-from .rotations import matrix_to_quat, rotation_between, sixd_to_matrix
+from .geometry.rotations import matrix_to_quat, rotation_between, sixd_to_matrix
 from .skeleton import CHILDREN, JOINT_NAMES, NUM_JOINTS, PARENTS
 from .storyboard import AGENT_COLORS
 

@@ -11,25 +11,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .body import body_points
 from .camera import StoryboardCamera
-from .controls import closest_on_polyline
+from .geometry.polylines import point_polyline_distance
 from .objects import ObjectSpec, local_to_world, world_to_local
-from .skeleton import FEET, HANDS, JOINT_INDEX, PARENTS
+from .skeleton import FEET, HANDS, JOINT_INDEX
 
 FOOT_CONTACT_HEIGHT = 0.05   # m
 FOOT_SKATE_SPEED = 0.5       # m/s
 FAILURE_THRESHOLDS = (0.2, 0.5)  # m, OmniControl-style failure rates
 DEEP_PENETRATION = 0.04      # m
-
-# The body's collision proxy, shared with the guidance energies so that what guidance
-# minimises is what Pen measures: a sphere at every joint and at every bone's midpoint
-# (the midpoint's radius is the mean of its ends'), approximating capsules along the bones.
-BONES = np.array([(p, c) for c, p in enumerate(PARENTS) if p >= 0])   # (21, 2) parent, child
-_RADIUS = {"pelvis": 0.10, "l_hip": 0.07, "spine1": 0.10, "l_knee": 0.05, "spine2": 0.10,
-           "l_ankle": 0.04, "spine3": 0.10, "l_foot": 0.03, "neck": 0.05, "l_collar": 0.06,
-           "head": 0.09, "l_shoulder": 0.05, "l_elbow": 0.04, "l_wrist": 0.02}
-JOINT_RADII = np.array([_RADIUS[n.replace("r_", "l_")] for n in JOINT_INDEX])      # (22,)
-
 
 def foot_skate_ratio(joints: np.ndarray, fps: float, window: int = 1) -> float:
     """Share of frames in which a planted foot slides.
@@ -56,11 +47,6 @@ def foot_skate_ratio(joints: np.ndarray, fps: float, window: int = 1) -> float:
 
 
 # ---- control accuracy -------------------------------------------------------------------------
-
-def point_polyline_distance(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
-    """Exact distance of points (P, D) to a polyline (L, D), L >= 1 -> (P,)."""
-    return np.linalg.norm(np.asarray(points, float) - closest_on_polyline(points, polyline), axis=-1)
-
 
 def keypose_errors_2d(joints: np.ndarray, kp2d: np.ndarray, kp_mask: np.ndarray,
                       camera: StoryboardCamera) -> np.ndarray:
@@ -126,13 +112,6 @@ def anchor_error(joints: np.ndarray, obj_anchors: np.ndarray, contact_anchor: np
     frame = np.broadcast_to(np.arange(n)[:, None, None], held.shape)
     target = anchors[frame[held], contact_anchor[held]]
     return float(np.mean(np.linalg.norm(joints[:, :, list(HANDS)][held] - target, axis=-1)))
-
-
-def body_points(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Collision spheres of a body: joints (..., 22, 3) -> centres (..., 43, 3), radii (43,)."""
-    mids = 0.5 * (joints[..., BONES[:, 0], :] + joints[..., BONES[:, 1], :])
-    radii = np.concatenate([JOINT_RADII, 0.5 * (JOINT_RADII[BONES[:, 0]] + JOINT_RADII[BONES[:, 1]])])
-    return np.concatenate([joints, mids], axis=-2), radii
 
 
 def frame_penetration(joints: np.ndarray, obj_pose: np.ndarray | None = None,

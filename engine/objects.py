@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rotations import quat_to_matrix
+from .geometry.rotations import quat_to_matrix
 
 OBJECT_TYPES = ("box", "table", "canister")
 DEFAULT_SIZES = {"box": (0.45, 0.35, 0.35), "table": (1.2, 0.74, 0.7), "canister": (0.3, 0.5, 0.3)}

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rotations import kabsch, normalize, rotation_between
+from .geometry.rotations import kabsch, normalize, rotation_between
 
 JOINT_NAMES = (
     "pelvis", "l_hip", "r_hip", "spine1", "l_knee", "r_knee", "spine2", "l_ankle", "r_ankle",

@@ -14,7 +14,7 @@ from scipy.linalg import solve_banded
 
 from ..camera import StoryboardCamera
 from ..clip import MotionClip
-from ..rotations import matrix_to_quat, quat_to_matrix
+from ..geometry.rotations import matrix_to_quat, quat_to_matrix
 
 
 def yaw_matrix(yaw: np.ndarray) -> np.ndarray:
@@ -173,19 +173,6 @@ def sample_frames(clip: MotionClip, times: np.ndarray, fps: float | None = None)
         pose[..., 3:] = q / np.linalg.norm(q, axis=-1, keepdims=True)
         kw["obj_pose"] = pose
     return MotionClip(**kw)
-
-
-def closest_on_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
-    """The nearest point of a polyline (L, 2), L >= 1, to each point (P, 2) -> (P, 2)."""
-    poly = np.asarray(polyline, float)
-    if len(poly) == 1:
-        return np.repeat(poly, len(points), axis=0)
-    a, seg = poly[:-1], np.diff(poly, axis=0)                                # (S, 2)
-    rel = points[:, None] - a[None]                                          # (P, S, 2)
-    t = np.clip(np.sum(rel * seg, -1) / np.maximum(np.sum(seg * seg, -1), 1e-24), 0.0, 1.0)
-    near = a[None] + t[..., None] * seg[None]                                # (P, S, 2)
-    best = np.argmin(np.linalg.norm(points[:, None] - near, axis=-1), axis=1)
-    return near[np.arange(len(points)), best]
 
 
 def smooth_offsets(targets: np.ndarray, weights: np.ndarray, falloff: float = 10.0,

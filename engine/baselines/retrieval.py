@@ -36,11 +36,12 @@ from ..clip import MotionClip
 from ..controls import Controls, build_controls
 from ..io.resample import resample_clip
 from ..objects import local_to_world
-from ..rotations import matrix_to_6d
+from ..geometry.rotations import matrix_to_6d
 from ..sampling.events import GenerationResult, StepEvent
 from ..skeleton import HANDS, JOINT_INDEX, NUM_JOINTS, fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
-from .adaptation import (closest_on_polyline, fit_ground_rigid, keyframe_warp, sample_frames,
+from ..geometry.polylines import closest_on_polyline
+from .adaptation import (fit_ground_rigid, keyframe_warp, sample_frames,
                          smooth_offsets, transform_clip)
 
 JOINT, OBJECT_ROOT, OBJECT_CENTRE = 0, 1, 2   # kinds of sketch point

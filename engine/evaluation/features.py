@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import torch
 
+from ..geometry.rotations_torch import quat_to_matrix
 from ..skeleton import JOINT_INDEX, NUM_JOINTS
 
 NUM_HUMANS = 2
@@ -46,17 +47,6 @@ def first_frame_frame(joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]
     return origin, turn
 
 
-def quaternion_to_matrix(q: torch.Tensor) -> torch.Tensor:
-    """Quaternions wxyz (..., 4) -> rotation matrices (..., 3, 3), normalised first; an all-zero
-    quaternion (the padded pose of an absent object) gives the identity."""
-    q = q + (q.norm(dim=-1, keepdim=True) < 1e-8) * q.new_tensor([1.0, 0.0, 0.0, 0.0])
-    w, x, y, z = (q / q.norm(dim=-1, keepdim=True)).unbind(-1)
-    return torch.stack([
-        torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        torch.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        torch.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
-
-
 def _velocity(x: torch.Tensor, fps: float) -> torch.Tensor:
     """Backward differences along time (dim 1), in units per second; zero at the first frame."""
     return torch.cat([torch.zeros_like(x[:, :1]), x[:, 1:] - x[:, :-1]], dim=1) * fps
@@ -70,7 +60,7 @@ def motion_features(joints: torch.Tensor, obj_pose: torch.Tensor, obj_present: t
     canon = torch.einsum("bij,bnhkj->bnhki", turn, joints - origin[:, None, None, None])
     present = obj_present.reshape(b, 1, 1).to(joints.dtype)
     obj_pos = torch.einsum("bij,bnj->bni", turn, obj_pose[:, :, 0, :3] - origin[:, None]) * present
-    obj_rot = turn[:, None] @ quaternion_to_matrix(obj_pose[:, :, 0, 3:])          # (B, N, 3, 3)
+    obj_rot = turn[:, None] @ quat_to_matrix(obj_pose[:, :, 0, 3:])          # (B, N, 3, 3)
     obj_rot6d = obj_rot[..., :2].transpose(-1, -2).reshape(b, n, 6) * present
     flat = canon.reshape(b, n, -1)
     return torch.cat([flat, _velocity(flat, fps), obj_pos, obj_rot6d, _velocity(obj_pos, fps),

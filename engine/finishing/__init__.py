@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..clip import MotionClip
-from ..rotations import matrix_to_6d
+from ..geometry.rotations import matrix_to_6d
 from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts, step_within_reach

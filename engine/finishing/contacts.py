@@ -21,9 +21,9 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ..metrics import BONES, JOINT_RADII, body_points
+from ..body import BONES, JOINT_RADII, body_points
 from ..objects import ObjectSpec, local_to_world, world_to_local
-from ..rotations import normalize, quat_to_matrix
+from ..geometry.rotations import normalize, quat_to_matrix
 from ..skeleton import HANDS, JOINT_INDEX, JOINT_NAMES
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard

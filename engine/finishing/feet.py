@@ -22,7 +22,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import distance_transform_edt, gaussian_filter1d, maximum_filter1d
 
-from ..rotations import normalize
+from ..geometry.rotations import normalize
 from ..skeleton import ANKLES, FEET, JOINT_INDEX
 from ..synth.reach import UP, two_bone_ik
 from ..synth.trajectory import smoothstep

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..rotations import euler_to_matrix, matrix_to_quat, quat_to_matrix
+from ..geometry.rotations import euler_to_matrix, matrix_to_quat, quat_to_matrix
 from .resample import resample_linear, resample_quaternions
 
 END_SITE = "End Site"

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..clip import MotionClip
-from ..rotations import matrix_to_euler, normalize, sixd_to_matrix
+from ..geometry.rotations import matrix_to_euler, normalize, sixd_to_matrix
 from ..skeleton import CHILDREN, JOINT_NAMES, PARENTS
 from .bvh import END_SITE, BvhMotion, BvhNode, format_bvh
 

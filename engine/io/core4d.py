@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..clip import MotionClip
-from ..rotations import matrix_to_quat, rotation_between
+from ..geometry.rotations import matrix_to_quat, rotation_between
 from ..skeleton import JOINT_INDEX, NUM_JOINTS
 from .importer import ImportConfig, ImportReport, finish_clip, place_people
 from .retarget import RetargetError

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..clip import MotionClip
-from ..rotations import sixd_to_matrix
+from ..geometry.rotations import sixd_to_matrix
 from ..skeleton import FEET, JOINT_INDEX, bone_lengths, forward_kinematics
 from .bvh import BvhMotion, read_bvh
 from .resample import resample_clip

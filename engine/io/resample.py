@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..clip import MotionClip
-from ..rotations import matrix_to_6d, matrix_to_quat, normalize, quat_to_matrix, sixd_to_matrix
+from ..geometry.rotations import matrix_to_6d, matrix_to_quat, normalize, quat_to_matrix, sixd_to_matrix
 from ..skeleton import forward_kinematics
 
 

@@ -8,7 +8,7 @@ gradient of group p flattened to s * D numbers and U_o V_o^T a rank-r block that
 for every q. It is one fixed linear map (it does not depend on z): cheap every solver step and
 stable, where autograd through D would cost a decoder backward and follow its local wiggles.
 
-Motion flattening (D numbers per frame) follows engine.scene.SceneLayout:
+Motion flattening (D numbers per frame) follows engine.state_vector.SceneLayout:
 [human 0: per joint (xyz, rot6d) | human 1 ... | object poses (7 each) | object anchors (K*3 each)].
 
 For the trainer:
@@ -30,7 +30,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..objects import NUM_ANCHORS
-from ..scene import HUMAN_DIM, SceneLayout
+from ..state_vector import HUMAN_DIM, SceneLayout
 from ..skeleton import NUM_JOINTS
 
 Decoder = Callable[[torch.Tensor], "dict[str, torch.Tensor] | torch.Tensor"]

@@ -8,10 +8,10 @@ import numpy as np
 from ..camera import StoryboardCamera
 from ..clip import MotionClip
 from ..objects import ObjectSpec
-from ..rotations import matrix_to_6d, rotation_between
+from ..geometry.rotations import matrix_to_6d, rotation_between
 from ..skeleton import JOINT_INDEX, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
 from ..storyboard import Agent, Keypose, SceneObject, Storyboard, Trajectory
-from .bodies import hand_centres
+from ..body import hand_centres
 from .scene import SceneState, scene_from_clip
 
 J = JOINT_INDEX

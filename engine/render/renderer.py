@@ -20,8 +20,9 @@ import moderngl
 import numpy as np
 
 from ..objects import ObjectSpec
-from ..rotations import quat_to_matrix
-from .bodies import HAND_RADIUS, body_instances, hand_centres
+from ..geometry.rotations import quat_to_matrix
+from ..body import HAND_RADIUS, hand_centres
+from .bodies import body_instances
 from .camera import OrbitCamera
 from .context import load_program, shared_context
 from .example import warm_up_scenes

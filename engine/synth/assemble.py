@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..clip import PHASES, MotionClip
-from ..rotations import matrix_to_6d
+from ..geometry.rotations import matrix_to_6d
 from .body import BodyConfig, pose_person
 from .gait import GaitConfig, plan_footwork
 from .props import world_anchors

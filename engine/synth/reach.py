@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotations import normalize
+from ..geometry.rotations import normalize
 
 UP = np.array([0.0, 1.0, 0.0])
 

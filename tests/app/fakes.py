@@ -9,7 +9,7 @@ import numpy as np
 from app.generation import GenerationSettings
 from engine.clip import MotionClip
 from engine.objects import ObjectSpec
-from engine.rotations import matrix_to_6d
+from engine.geometry.rotations import matrix_to_6d
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.skeleton import JOINT_INDEX, NUM_JOINTS, rest_pose
 from engine.storyboard import Contact, Keypose, ObjectKey, ObjectPath, SceneObject, Storyboard, Trajectory

@@ -3,7 +3,9 @@ import numpy as np
 import pytest
 
 from engine import metrics as M
+from engine.body import JOINT_RADII
 from engine.clip import MotionClip
+from engine.geometry.polylines import point_polyline_distance
 from engine.objects import ObjectSpec
 from engine.skeleton import JOINT_INDEX, rest_pose
 from engine.storyboard import Agent, Contact, Keypose, SceneObject, Storyboard, Trajectory
@@ -33,9 +35,9 @@ def clip(joints, **kw) -> MotionClip:
 def test_polyline_distance_of_a_point_at_distance_d():
     line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
     for d in (0.0, 0.07, 0.5):
-        assert M.point_polyline_distance(np.array([[1.3, d]]), line)[0] == pytest.approx(d)
-    assert M.point_polyline_distance(np.array([[3.0, 0.0]]), line)[0] == pytest.approx(1.0)   # past the end
-    assert M.point_polyline_distance(np.array([[0.3, 0.4]]), np.zeros((2, 2)))[0] == pytest.approx(0.5)
+        assert point_polyline_distance(np.array([[1.3, d]]), line)[0] == pytest.approx(d)
+    assert point_polyline_distance(np.array([[3.0, 0.0]]), line)[0] == pytest.approx(1.0)   # past the end
+    assert point_polyline_distance(np.array([[0.3, 0.4]]), np.zeros((2, 2)))[0] == pytest.approx(0.5)
 
 
 def test_keypose_errors_one_joint_10cm_off():
@@ -89,7 +91,7 @@ def test_penetration_of_a_point_inside_a_box():
     mean, deep = M.penetration(joints, pose, box, radii=np.zeros(43))
     assert mean == pytest.approx(0.03) and deep == 0.0
     mean, deep = M.penetration(joints, pose, box)                        # with the wrist's sphere
-    assert mean == pytest.approx(0.03 + M.JOINT_RADII[WRIST]) and deep == 1.0
+    assert mean == pytest.approx(0.03 + JOINT_RADII[WRIST]) and deep == 1.0
     sunk = joints.copy()
     sunk[:10, 1, :, 1] -= 0.1                                            # 8 cm below ground
     mean, deep = M.penetration(sunk)

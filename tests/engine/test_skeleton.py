@@ -3,8 +3,8 @@ import numpy as np
 from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
-from engine import rotations as rot
-from engine.scene import SceneLayout
+from engine.geometry import rotations as rot
+from engine.state_vector import SceneLayout
 from engine.skeleton import (FEET, JOINT_INDEX, MIRROR, NUM_JOINTS, PARENTS, REST_OFFSETS,
                              REST_PELVIS_HEIGHT, bone_lengths, fit_offsets, forward_kinematics,
                              inverse_kinematics, rest_pose)

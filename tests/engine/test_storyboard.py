@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from engine.camera import StoryboardCamera
-from engine.controls import build_controls, resample_polyline
+from engine.controls import build_controls
+from engine.geometry.polylines import resample_polyline
 from engine.skeleton import JOINT_INDEX, rest_pose
 from engine.storyboard import Storyboard, StoryboardError, nu
 

@@ -16,7 +16,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ...controls import Controls, build_controls, resample_polyline
+from ...controls import Controls, build_controls
+from ...geometry.polylines import resample_polyline
 from ...objects import ObjectSpec
 from ...skeleton import FEET, HANDS, JOINT_INDEX, NUM_JOINTS
 from ...storyboard import HANDS as HAND_NAMES

@@ -5,19 +5,14 @@ from __future__ import annotations
 import functools
 from types import SimpleNamespace
 
-import numpy as np
 import torch
 from torch import Tensor
 
-from ...metrics import BONES, JOINT_RADII
+from ...body import BONES, SPHERE_RADII
 from ...objects import ObjectSpec
 from ...skeleton import NUM_JOINTS
+from ...geometry.rotations_torch import safe_norm
 from .context import _EPS, _TABLES, EnergyContext, _const
-
-def safe_norm(v: Tensor) -> Tensor:
-    """Euclidean norm over the last axis with a finite gradient at 0. (..., D) -> (...)."""
-    return torch.sqrt(torch.linalg.vecdot(v, v) + _EPS)
-
 
 def project(points: Tensor, ctx: EnergyContext) -> Tensor:
     """World points (B, ..., 3) -> sketch-plane points (B, ..., 2) through the storyboard camera."""
@@ -25,38 +20,6 @@ def project(points: Tensor, ctx: EnergyContext) -> Tensor:
     flat = points.reshape(b, -1, 3) - ctx.cam_target[:, None]
     uv = torch.bmm(flat, ctx.camera[:, :2].transpose(1, 2))
     return uv.reshape(*points.shape[:-1], 2)
-
-
-def _quat_product_table() -> np.ndarray:
-    """(16, 9): R - I = 2 * (q q^T).flatten() @ table for a unit quaternion q = (w, x, y, z);
-    row 4a + b holds the sign of the product q_a q_b in each entry of the textbook formula."""
-    entries = {(0, 0): "-yy -zz", (0, 1): "+xy -wz", (0, 2): "+xz +wy",
-               (1, 0): "+xy +wz", (1, 1): "-xx -zz", (1, 2): "+yz -wx",
-               (2, 0): "+xz -wy", (2, 1): "+yz +wx", (2, 2): "-xx -yy"}
-    table = np.zeros((16, 9))
-    for (row, col), terms in entries.items():
-        for sign, a, b in terms.split():
-            table[4 * "wxyz".index(a) + "wxyz".index(b), 3 * row + col] = 1.0 if sign == "+" else -1.0
-    return table
-
-
-_TABLES["quat"], _TABLES["eye3"] = _quat_product_table(), np.eye(3).ravel()
-
-
-def quat_to_matrix(q: Tensor) -> Tensor:
-    """(..., 4) wxyz, normalised here -> (..., 3, 3).
-    One matmul over the outer product instead of nine expressions (a few ops instead of ~40);
-    each entry is the same two-product sum, so the values are the formula's."""
-    q = q / safe_norm(q)[..., None]
-    products = (q[..., :, None] * q[..., None, :]).flatten(-2)               # (..., 16)
-    r = 2 * (products @ _const("quat", q)) + _const("eye3", q)
-    return r.reshape(*q.shape[:-1], 3, 3)
-
-
-def world_to_local(points: Tensor, pose: Tensor) -> Tensor:
-    """World points (..., P, 3) into the frame of pose (..., 7: xyz + wxyz) -> (..., P, 3)."""
-    R = quat_to_matrix(pose[..., 3:])
-    return (points - pose[..., None, :3]) @ R
 
 
 def _box_sdf(q: Tensor, half: Tensor) -> Tensor:
@@ -82,17 +45,16 @@ def object_sdf(spec: ObjectSpec, p: Tensor) -> Tensor:
     return _box_sdf(p[..., None, :] - _const(centres, p), _const(halves, p)).min(-1).values
 
 
-_SPHERE_RADII = np.concatenate([JOINT_RADII, 0.5 * (JOINT_RADII[BONES[:, 0]] + JOINT_RADII[BONES[:, 1]])])
 _BONE_ENDS = torch.as_tensor(BONES, dtype=torch.long)                                   # (21, 2)
 # sphere k is the midpoint of joints _SPHERE_ENDS[k] (a joint sphere: of itself and itself)
 _SPHERE_ENDS = torch.cat([torch.arange(NUM_JOINTS)[:, None].expand(-1, 2), _BONE_ENDS])   # (43, 2)
-_TABLES["sphere_radii"] = _SPHERE_RADII
+_TABLES["sphere_radii"] = SPHERE_RADII
 
 
 def body_points(joints: Tensor) -> tuple[Tensor, Tensor]:
     """The capsule proxy of a body as spheres: joints and bone midpoints (see metrics.BONES).
     joints (..., 22, 3) -> points (..., 43, 3), radii (43,)."""
-    return _sphere_centres_all(joints), joints.new_tensor(_SPHERE_RADII)
+    return _sphere_centres_all(joints), joints.new_tensor(SPHERE_RADII)
 
 
 def _sphere_centres_all(joints: Tensor) -> Tensor:

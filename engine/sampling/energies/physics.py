@@ -10,8 +10,9 @@ from torch import Tensor
 from ...objects import ObjectSpec
 from ...skeleton import NUM_JOINTS
 from .context import _FOOT_JOINTS, _TABLES, EnergyConfig, EnergyContext, _const
-from .geometry import (_SPHERE_ENDS, _SPHERE_RADII, _pairs, _per_constraint, _sphere_centres_all, object_sdf,
-                       quat_to_matrix, safe_norm)
+from ...geometry.rotations_torch import quat_to_matrix, safe_norm
+from ...body import SPHERE_RADII
+from .geometry import _SPHERE_ENDS, _pairs, _per_constraint, _sphere_centres_all, object_sdf
 
 def _stance(feet: Tensor, fps: float, cfg: EnergyConfig) -> Tensor:
     """Soft stance weight of feet (B, N, H, 2, 3) per frame -> (B, N, H, 2), no gradient.
@@ -69,7 +70,7 @@ def smoothness_energy(motion: dict[str, Tensor], ctx: EnergyContext, occupancy: 
 
 
 _PENETRATION_SLACK = 1e-4   # m; candidate search tolerance, so that the exact depth decides
-_TABLES["sphere_pair_reach"] = (_SPHERE_RADII[:, None] + _SPHERE_RADII[None] + _PENETRATION_SLACK) ** 2
+_TABLES["sphere_pair_reach"] = (SPHERE_RADII[:, None] + SPHERE_RADII[None] + _PENETRATION_SLACK) ** 2
 
 
 def _object_candidates(coords: Tensor, pose: Tensor, o: int, spec: ObjectSpec) -> Tensor:
@@ -104,7 +105,7 @@ def _people_candidates(coords: Tensor) -> tuple[Tensor, Tensor]:
     lo, hi = coords.amin(-1), coords.amax(-1)                                # (3, B, N, H)
     lo_i, lo_j, hi_i, hi_j = (x.index_select(-1, k) for x in (lo, hi) for k in (i, j))
     apart = torch.maximum(lo_i - hi_j, lo_j - hi_i).amax(0)                 # (B, N, pairs)
-    bi, ni, pair = (apart < 2 * float(_SPHERE_RADII.max()) + _PENETRATION_SLACK).nonzero(as_tuple=True)
+    bi, ni, pair = (apart < 2 * float(SPHERE_RADII.max()) + _PENETRATION_SLACK).nonzero(as_tuple=True)
     if not len(bi):
         return bi, bi
     people = coords.reshape(3, b * n * h, p)
@@ -120,7 +121,7 @@ def _people_candidates(coords: Tensor) -> tuple[Tensor, Tensor]:
 def _sphere_centres(joints: Tensor, sphere: Tensor) -> Tensor:
     """Centres (M, 3) of the spheres with flat index `sphere` (M,) into (B, N, H, P), from their
     two joints (B, N, H, 22, 3): autograd sees M points, not every sphere of every frame."""
-    p = len(_SPHERE_RADII)
+    p = len(SPHERE_RADII)
     rows = (sphere // p)[:, None] * NUM_JOINTS + _SPHERE_ENDS.to(sphere.device)[sphere % p]   # (M, 2)
     return 0.5 * joints.reshape(-1, 3).index_select(0, rows.flatten()).view(-1, 2, 3).sum(1)
 
@@ -139,7 +140,7 @@ def penetration_energy(motion: dict[str, Tensor], ctx: EnergyContext, occupancy:
     empty) pair count."""
     joints = motion["joints"]
     b, n, h = joints.shape[:3]
-    shape = (b, n, h, len(_SPHERE_RADII))
+    shape = (b, n, h, len(SPHERE_RADII))
     pose = motion.get("obj_pose")
     objects = ctx.objects if pose is not None else ()
     with torch.no_grad():  # the search sums over xyz: fast coordinate-first, slow coordinate-last

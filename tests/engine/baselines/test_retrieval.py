@@ -8,7 +8,7 @@ from engine.baselines import AdaptConfig, IndexConfig, RetrievalIndex, adapt, re
 from engine.baselines.adaptation import sample_frames, transform_clip
 from engine.clip import MotionClip
 from engine.metrics import adherence
-from engine.rotations import axis_angle_to_matrix, matrix_to_6d
+from engine.geometry.rotations import axis_angle_to_matrix, matrix_to_6d
 from engine.sketchify import sketchify
 from engine.skeleton import REST_OFFSETS, REST_PELVIS_HEIGHT, forward_kinematics
 

@@ -14,7 +14,7 @@ from engine.evaluation import (EvaluatorConfig, EvaluatorError, MotionEvaluator,
 from engine.evaluation.evaluator import motion_batch, story_batch
 from engine.evaluation.features import motion_features, story_features
 from engine.evaluation.train_evaluator import FeatureCache, TrainConfig, fit, main
-from engine.rotations import matrix_to_6d
+from engine.geometry.rotations import matrix_to_6d
 from engine.skeleton import JOINT_INDEX, rest_pose
 from engine.sketchify import sketchify
 

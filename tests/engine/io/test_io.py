@@ -15,7 +15,7 @@ from engine.io.core4d import list_core4d, load_core4d
 from engine.io.interhuman import ZUP_TO_OURS, list_interhuman, load_interhuman
 from engine.io.retarget import TEMPLATE_LEG_LENGTH, leg_length
 from engine.io.resample import resample_linear, resample_quaternions
-from engine.rotations import axis_angle_to_matrix, quat_to_matrix, sixd_to_matrix
+from engine.geometry.rotations import axis_angle_to_matrix, quat_to_matrix, sixd_to_matrix
 from engine.skeleton import FEET, JOINT_INDEX as J, NUM_JOINTS, REST_OFFSETS, bone_lengths, forward_kinematics
 
 

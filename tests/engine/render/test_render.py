@@ -7,7 +7,7 @@ import pytest
 from PIL import Image
 
 from engine.clip import MotionClip
-from engine.rotations import matrix_to_6d
+from engine.geometry.rotations import matrix_to_6d
 from engine.skeleton import NUM_JOINTS, rest_pose
 
 render = pytest.importorskip("engine.render")

@@ -105,11 +105,45 @@ def test_teacher_methods_stream_the_same_way(bundle, storyboard, method, steps):
     assert len(events) == (steps or 12) and np.isfinite(result.clips[0].joints).all()
 
 
-def test_ablations_run(bundle, storyboard):
-    for cfg in (SamplerConfig(steps=2, use_ctmc=False), SamplerConfig(steps=2, use_temporal_bias=False),
-                SamplerConfig(steps=2, trajectory_only=True), SamplerConfig(steps=2, langevin_steps=3)):
-        _, result = drain(sample(bundle, storyboard, cfg))
-        assert np.isfinite(result.clips[0].joints).all()
+ABLATIONS = {"use_ctmc": False, "use_temporal_bias": False, "trajectory_only": True, "use_energy": False,
+             "use_latent": False, "finish": False, "langevin_steps": 3}
+
+
+@pytest.fixture(scope="module")
+def lively_bundle():
+    """An untrained bundle whose zero-initialised layers (output heads, the attention bias) are
+    randomised too, so that every input reaches the output."""
+    bundle = untrained_bundle(replace(ModelConfig.default(), schedule=VPSchedule(steps=12)))
+    generator = torch.Generator().manual_seed(0)
+    with torch.no_grad():
+        for part in bundle.parts.values():
+            for p in part.parameters():
+                if p.abs().sum() == 0:
+                    p.copy_(0.1 * torch.randn(p.shape, generator=generator))
+    return bundle
+
+
+@pytest.mark.parametrize("switch", list(ABLATIONS))
+def test_each_ablation_switch_changes_the_motion(lively_bundle, storyboard, switch):
+    """A switch the sampler ignored would give the default's motion: every one must change it,
+    and show where it acts."""
+    config = SamplerConfig(steps=4, seed=1)
+    base_events, base = drain(sample(lively_bundle, storyboard, config))
+    events, result = drain(sample(lively_bundle, storyboard, replace(config, **{switch: ABLATIONS[switch]})))
+    assert np.isfinite(result.clips[0].joints).all()
+    assert np.abs(result.clips[0].joints - base.clips[0].joints).max() > 1e-4
+    energies = set().union(*(e.energies for e in events))
+    if switch == "use_ctmc":            # no planner: phases stay uniform, and the contact terms ungated
+        assert all(np.allclose(e.phase, 1 / 3) for e in events)
+        assert not all(np.allclose(e.phase, 1 / 3) for e in base_events)
+    if switch == "trajectory_only":
+        assert energies - {"latent", "total"} == {"trajectory"}
+    if switch == "use_energy":
+        assert energies == {"latent", "total"}
+    if switch == "use_latent":
+        assert "latent" not in energies and "keyframe" in energies
+    if switch == "langevin_steps":
+        assert result.network_evals == base.network_evals + 3
 
 
 def test_one_person_no_object_odd_length(bundle, storyboard):
