@@ -51,8 +51,7 @@ class SketchCanvas(QWidget):
         self._doc = document
         self.zoom = 170.0                     # pixels per metre
         self.pan = np.array([0.0, -0.1])      # sketch point at the widget centre
-        self.object_shape = "rectangle"       # or "lasso"
-        self.show_onion = True
+        self.show_onion = True                # the generated motion under the sketch (set_onion)
         self._gesture: _Gesture | None = None
         self._pending_hand: tuple[str, str] | None = None   # contact tool: (agent, hand) picked
         self.setMinimumSize(320, 240)
@@ -66,6 +65,11 @@ class SketchCanvas(QWidget):
         self._on_tool(document.tool)
 
     # ---- coordinates ---------------------------------------------------------------------------
+    def set_onion(self, on: bool) -> None:
+        if on != self.show_onion:
+            self.show_onion = on
+            self.update()
+
     def to_px(self, uv) -> np.ndarray:
         """Sketch points (..., 2) metres -> widget pixels (..., 2)."""
         uv = np.asarray(uv, float)
@@ -313,7 +317,8 @@ class SketchCanvas(QWidget):
         self._gesture = _Gesture("stroke", [uv])
 
     def _press_object(self, uv):
-        self._gesture = _Gesture("rect" if self.object_shape == "rectangle" else "lasso", [uv, uv])
+        shape = self._doc.tool_options.object_shape
+        self._gesture = _Gesture("rect" if shape == "rectangle" else "lasso", [uv, uv])
 
     def _press_contact(self, uv):
         hand = self._hand_at(uv)

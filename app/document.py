@@ -1,9 +1,10 @@
 """The open document: a pure model the widgets observe (napari style), no widgets here.
 
-It holds the Storyboard, its file path, the dirty flag, the selection, the active tool, the
-playhead frame, the timeline's frame span, the generation settings and the last generation's
-clips and phase occupancy. Storyboard edits go through `commands.py` on `undo_stack`; every
-other change is a setter that emits its signal only when the value really changes.
+It holds the Storyboard, its file path, the dirty flag, the selection, the active tool and its
+options, the playhead frame, the timeline's frame span, the generation settings and the last
+generation's clips and phase occupancy (a running generation is app.session's). Storyboard
+edits go through `commands.py` on `undo_stack`; every other change is a setter that emits its
+signal only when the value really changes.
 """
 from __future__ import annotations
 
@@ -31,6 +32,15 @@ def new_storyboard() -> Storyboard:
 
 
 @dataclass(frozen=True)
+class ToolOptions:
+    """How the tools draw; the canvas reads them, the properties panel sets them."""
+    object_shape: str = "rectangle"   # the object tool drags a "rectangle" or draws a "lasso"
+
+
+OBJECT_SHAPES = ("rectangle", "lasso")
+
+
+@dataclass(frozen=True)
 class Selection:
     agent: str | None = None
     joint: str = "pelvis"        # a JOINT_NAMES entry or OBJECT_PATH
@@ -42,6 +52,7 @@ class Document(QObject):
     replaced = Signal()            # a whole new storyboard (new, open, recover): views reframe
     selectionChanged = Signal()
     toolChanged = Signal(str)
+    toolOptionsChanged = Signal()
     frameChanged = Signal(int)
     spanChanged = Signal()         # the timeline's frame span (used by trajectories, contacts)
     settingsChanged = Signal()
@@ -59,6 +70,7 @@ class Document(QObject):
         self._unsaved_without_edits = False  # e.g. a recovered file: dirty before any edit
         self.selection = Selection(agent=self.storyboard.agents[0].id)
         self.tool = "keypose"
+        self.tool_options = ToolOptions()
         self.frame = 0
         self.span: tuple[int, int] | None = None
         self.settings = GenerationSettings()
@@ -120,6 +132,15 @@ class Document(QObject):
         if tool != self.tool:
             self.tool = tool
             self.toolChanged.emit(tool)
+
+    def set_tool_options(self, **changes) -> None:
+        """e.g. set_tool_options(object_shape="lasso")."""
+        new = replace(self.tool_options, **changes)
+        if new.object_shape not in OBJECT_SHAPES:
+            raise ValueError(f"unknown object shape {new.object_shape!r}")
+        if new != self.tool_options:
+            self.tool_options = new
+            self.toolOptionsChanged.emit()
 
     def set_frame(self, frame: int) -> None:
         frame = int(np.clip(frame, 0, self.storyboard.length - 1))

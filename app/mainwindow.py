@@ -6,21 +6,30 @@ with a one-line message, and the document stays as it was.
 """
 from __future__ import annotations
 
-import copy
-import time
-from dataclasses import replace
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 from PySide6.QtCore import QEvent, QSettings, Qt
 from PySide6.QtGui import QAction, QActionGroup, QKeySequence
-from PySide6.QtWidgets import (QDockWidget, QFileDialog, QFrame, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
-                               QProgressBar, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QDockWidget,
+    QFileDialog,
+    QFrame,
+    QHBoxLayout,
+    QLabel,
+    QMainWindow,
+    QMessageBox,
+    QProgressBar,
+    QScrollArea,
+    QSizePolicy,
+    QVBoxLayout,
+    QWidget,
+)
 
 from engine.clip import MotionClip
 from engine.cpu import usable_cores
 from engine.export import export_gltf, export_npz, export_object_path
-from engine.render import SceneOptions
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard, StoryboardError
 
@@ -34,9 +43,11 @@ from .phase_strip import PhaseStrip, phase_legend_html
 from .playback import SPEEDS, Playback, speed_label
 from .poses import previous_keypose
 from .properties import PropertiesPanel
+from .session import GenerationSession
 from .timeline import PlaybackControls, Timeline, delete_keyframe
+from .view_options import LABELS as VIEW_LABELS
+from .view_options import ViewOptions, ViewOptionsModel
 from .viewport import Viewport
-from .worker import GenerationRunner
 
 APP_NAME = "Sketch2Colab Studio"
 FILE_FILTER = "Storyboards (*.json);;All files (*)"
@@ -84,10 +95,9 @@ class MainWindow(QMainWindow):
         super().__init__()
         self.doc = Document()
         self.settings = settings or QSettings()
-        self._generate = generate
-        self._generation_started = 0.0
         self.playback = Playback(self.doc, self)
-        self.runner = GenerationRunner(self)
+        self.session = GenerationSession(self.doc, generate, self)
+        self.view_options = ViewOptionsModel(self.settings, self)
         self.autosaver = Autosaver(self.doc, data_dir, autosave_ms, self)
 
         self.canvas = SketchCanvas(self.doc)
@@ -178,19 +188,16 @@ class MainWindow(QMainWindow):
         self.speed_actions[self.playback.speed].setChecked(True)
         self.act_generate = a("\u25b6  Generate", self.generate, [QKeySequence("Ctrl+Return"), QKeySequence("Ctrl+Enter")],
                               tip="Generate motion from the storyboard (Ctrl+Enter)")
-        self.act_cancel = a("\u25a0  Cancel", self.runner.cancel, QKeySequence(Qt.Key_Escape),
+        self.act_cancel = a("\u25a0  Cancel", self.session.cancel, QKeySequence(Qt.Key_Escape),
                             tip="Stop the running generation (Esc)", enabled=False)
-        self.act_onion = a("Onion Skin", lambda on: self._set_onion(on), tip="Show the generated motion under the sketch")
-        self.act_onion.setCheckable(True)
-        self.act_onion.setChecked(True)
-        # 3D overlays an artist may want out of the way while judging the motion itself.
-        self.overlay_actions = {}
-        for name, label in (("ghosts", "3D Keyframe Ghosts"), ("target_paths", "3D Sketched Paths"),
-                            ("generated_paths", "3D Generated Paths")):
-            act = a(label, lambda on, name=name: self.viewport.set_options(**{name: on}))
+        # Overlays an artist may want out of the way while judging the motion itself.
+        self.view_actions: dict[str, QAction] = {}
+        for name, label in VIEW_LABELS.items():
+            act = a(label, lambda on, name=name: self.view_options.set(**{name: on}))
             act.setCheckable(True)
-            act.setChecked(getattr(SceneOptions(), name))
-            self.overlay_actions[name] = act
+            act.setChecked(getattr(self.view_options.options, name))
+            self.view_actions[name] = act
+        self.view_actions["onion"].setToolTip("Show the generated motion under the sketch")
 
     def _build_docks(self) -> None:
         self.setDockOptions(QMainWindow.AnimatedDocks | QMainWindow.AllowNestedDocks)
@@ -290,8 +297,7 @@ class MainWindow(QMainWindow):
         self.threads_menu = gen.addMenu("CPU &Threads")
         self._build_threads_menu(self.threads_menu)
         view = bar.addMenu("&View")
-        view.addAction(self.act_onion)
-        view.addActions(list(self.overlay_actions.values()))
+        view.addActions(list(self.view_actions.values()))
         view.addSeparator()
         for dock in (self.timeline_dock, self.viewport_dock, self.properties_dock):
             view.addAction(dock.toggleViewAction())
@@ -367,14 +373,24 @@ class MainWindow(QMainWindow):
         self.viewport.playToggleRequested.connect(self.playback.toggle)
         self.viewport.stepRequested.connect(self.playback.step)
         self.canvas.message.connect(lambda text: self.statusBar().showMessage(text, 5000))
-        self.properties.objectShapeChanged.connect(lambda shape: setattr(self.canvas, "object_shape", shape))
         self.playback.loopChanged.connect(self.act_loop.setChecked)
         self.playback.speedChanged.connect(self._on_speed)
-        self.runner.step.connect(self._on_step)
-        self.runner.finished.connect(self._on_generated)
-        self.runner.failed.connect(self._on_generation_failed)
-        self.runner.cancelled.connect(self._on_generation_cancelled)
-        self.runner.runningChanged.connect(self._on_running)
+        self.view_options.changed.connect(self._apply_view_options)
+        self._apply_view_options(self.view_options.options)
+        # The views observe the generation session: previews and phases while it runs; a new
+        # result reaches them through the document, and a cancel or a failure shows its last one.
+        session = self.session
+        session.stepped.connect(lambda event: self.viewport.set_preview(event.preview))
+        session.stepped.connect(lambda event: self.phase_strip.set_phase(event.phase))
+        session.stepped.connect(self._show_progress)
+        for stopped in (session.failed, session.cancelled):
+            stopped.connect(lambda *_: self.viewport.set_preview(self.doc.clip))
+            stopped.connect(lambda *_: self.phase_strip.show_document_phase())
+        session.outdatedChanged.connect(lambda outdated: self.viewport.set_notice(OUTDATED_NOTICE if outdated else ""))
+        session.runningChanged.connect(self._on_running)
+        session.finished.connect(self._on_generated)
+        session.failed.connect(lambda message: self.error(f"Generation failed: {message}"))
+        session.cancelled.connect(lambda: self.statusBar().showMessage("Generation cancelled.", 5000))
         self._on_storyboard()
         self._on_frame(doc.frame)
 
@@ -396,20 +412,17 @@ class MainWindow(QMainWindow):
     def _on_storyboard(self) -> None:
         self.viewport.set_storyboard(self.doc.storyboard)
         self._on_frame(self.doc.frame)
-        self._show_outdated()
 
     def _show_result(self) -> None:
         """A new clip reframes the 3D camera (set_clip); the playhead stays where the artist left it."""
         self.viewport.set_clip(self.doc.clip)
         self.viewport.set_frame(self.doc.frame)
-        self._show_outdated()
 
-    def _show_outdated(self) -> None:
-        self.viewport.set_notice(OUTDATED_NOTICE if self.doc.result_outdated else "")
-
-    def _set_onion(self, on: bool) -> None:
-        self.canvas.show_onion = on
-        self.canvas.update()
+    def _apply_view_options(self, options: ViewOptions) -> None:
+        self.canvas.set_onion(options.onion)
+        self.viewport.set_scene_options(options.scene(self.viewport.options))
+        for name, action in self.view_actions.items():
+            action.setChecked(getattr(options, name))
 
     # ---- files ----------------------------------------------------------------------------------
     def error(self, message: str) -> None:
@@ -638,23 +651,17 @@ class MainWindow(QMainWindow):
 
     # ---- generation ------------------------------------------------------------------------------
     def generate(self) -> None:
-        if self.runner.running:
-            return
-        storyboard = copy.deepcopy(self.doc.storyboard)  # edits during the run do not leak into it
-        try:
-            storyboard.validate()
-        except StoryboardError as e:
-            self.error(f"The storyboard cannot be generated from: {e}")
+        if self.session.running:
             return
         # Software OpenGL draws the streamed previews on the same cores: leave it one.
         settings = replace(self.doc.settings, threads=self.threads_preference(),
                            reserve_cores=1.0 if self.viewport.draws_on_cpu() else 0.0)
-        generate = self._generate
-        self._generating_from = storyboard
-        self._generation_started = time.perf_counter()
+        problem = self.session.start(settings)
+        if problem is not None:
+            self.error(problem)
+            return
         self.progress.setRange(0, settings.steps)
         self.progress.setValue(0)
-        self.runner.start(lambda: generate(storyboard, settings))
         self.statusBar().showMessage("Generating\u2026  (Esc cancels)")
 
     def _on_running(self, running: bool) -> None:
@@ -662,34 +669,17 @@ class MainWindow(QMainWindow):
         self.act_cancel.setEnabled(running)
         self.progress.setVisible(running)
 
-    def _on_step(self, event: StepEvent) -> None:
-        """Cheap on purpose: hand the arrays over and let the widgets repaint when Qt paints."""
-        self.viewport.set_preview(event.preview)
-        self.phase_strip.set_phase(event.phase)
+    def _show_progress(self, event: StepEvent) -> None:
         self.progress.setRange(0, event.num_steps)
         self.progress.setValue(event.step + 1)
         energies = "  ".join(f"{k} {v:.3g}" for k, v in list(event.energies.items())[:4])
         self.statusBar().showMessage(f"Generating: step {event.step + 1} / {event.num_steps}  t={event.t:.2f}  {energies}")
 
     def _on_generated(self, result: GenerationResult) -> None:
-        clips = list(result.clips)
-        self.doc.set_result(clips, clips[0].phase if clips else None, source=self._generating_from)
+        count = len(result.clips)
         self.statusBar().showMessage(
-            f"Generated {len(clips)} variation{'s' * (len(clips) != 1)} in {result.wall_time_s:.1f} s "
+            f"Generated {count} variation{'s' * (count != 1)} in {result.wall_time_s:.1f} s "
             f"(first step after {result.first_step_s:.2f} s).", 10000)
-
-    def _on_generation_failed(self, message: str) -> None:
-        self._restore_after_generation()
-        self.error(f"Generation failed: {message}")
-
-    def _on_generation_cancelled(self) -> None:
-        self._restore_after_generation()
-        self.statusBar().showMessage("Generation cancelled.", 5000)
-
-    def _restore_after_generation(self) -> None:
-        """Cancel or error: show the last finished result again, as if nothing had streamed."""
-        self.viewport.set_preview(self.doc.clip)
-        self.phase_strip.show_document_phase()
 
     # ---- closing ---------------------------------------------------------------------------------
     def closeEvent(self, event) -> None:
@@ -704,6 +694,6 @@ class MainWindow(QMainWindow):
         """Stop playback, the generation thread and autosave; the recovery file goes too, since
         the person has either saved or chosen to discard."""
         self.playback.pause()
-        self.runner.shutdown()
+        self.session.shutdown()
         self.autosaver.stop()
         self.autosaver.clear()

@@ -6,16 +6,27 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from PySide6.QtCore import Signal
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout,
-                               QLabel, QListWidget, QPushButton, QSpinBox, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QDoubleSpinBox,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QListWidget,
+    QPushButton,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
 
 from engine.objects import DEFAULT_SIZES, OBJECT_TYPES
 from engine.skeleton import JOINT_NAMES
 from engine.storyboard import MAX_SECONDS
 
 from . import commands as cmd
-from .document import OBJECT_PATH, Document
+from .document import OBJECT_PATH, OBJECT_SHAPES, Document
 
 # The joints artists draw paths for most, first; then the rest of the skeleton.
 PATH_JOINTS = ("pelvis", "head", "l_wrist", "r_wrist", "l_foot", "r_foot")
@@ -23,7 +34,6 @@ JOINT_CHOICES = PATH_JOINTS + tuple(j for j in JOINT_NAMES if j not in PATH_JOIN
 
 
 class PropertiesPanel(QWidget):
-    objectShapeChanged = Signal(str)   # "rectangle" or "lasso", for the object tool
 
     def __init__(self, document: Document, parent: QWidget | None = None):
         super().__init__(parent)
@@ -66,7 +76,7 @@ class PropertiesPanel(QWidget):
         for spin in self.size:
             sizes.addWidget(spin)
         self.shape = QComboBox()
-        self.shape.addItems(["rectangle", "lasso"])
+        self.shape.addItems(OBJECT_SHAPES)
         form.addRow("Object", self.object)
         form.addRow("Type", self.object_type)
         form.addRow("W \u00d7 H \u00d7 D", sizes)
@@ -118,7 +128,8 @@ class PropertiesPanel(QWidget):
         self.object_type.activated.connect(self._apply_object)
         for spin in self.size:
             spin.editingFinished.connect(self._apply_object)
-        self.shape.currentTextChanged.connect(self.objectShapeChanged)
+        self.shape.currentTextChanged.connect(lambda shape: document.set_tool_options(object_shape=shape))
+        document.toolOptionsChanged.connect(lambda: self.shape.setCurrentText(document.tool_options.object_shape))
         self.delete_contact.clicked.connect(self._delete_contact)
         self.contacts.currentRowChanged.connect(lambda row: self.delete_contact.setEnabled(row >= 0))
         for widget in (self.seed, self.steps, self.cfg, self.variations):

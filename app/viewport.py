@@ -30,6 +30,7 @@ Public API (everything else is private):
     camera: OrbitCamera                    change it, then call update_view()
     empty_hint: str                        shown over the ground while there is no clip
     set_notice(text: str)                  a line under the frame caption while a clip is shown
+    set_scene_options(SceneOptions)        which overlays to draw
     draws_on_cpu() -> bool                 OpenGL runs in software (it competes with generation)
     grab_png(path) -> bool                 save what the widget shows
 Signals: playToggleRequested(), stepRequested(frames: int).
@@ -39,7 +40,6 @@ Keys: F frames all; Space requests play / pause, Left / Right request a one-fram
 from __future__ import annotations
 
 import threading
-from dataclasses import replace
 
 from PySide6.QtCore import QPointF, Qt, QTimer, Signal, Slot
 from PySide6.QtGui import QColor, QImage, QPainter
@@ -47,8 +47,16 @@ from PySide6.QtWidgets import QWidget
 
 from engine.clip import MotionClip
 from engine.objects import ObjectSpec
-from engine.render import (OrbitCamera, RenderConfig, RenderUnavailableError, SceneOptions, SceneRenderer,
-                           is_software, scene_from_clip, shared_context)
+from engine.render import (
+    OrbitCamera,
+    RenderConfig,
+    RenderUnavailableError,
+    SceneOptions,
+    SceneRenderer,
+    is_software,
+    scene_from_clip,
+    shared_context,
+)
 from engine.render.example import warm_up_scenes
 from engine.storyboard import Storyboard
 
@@ -139,10 +147,11 @@ class Viewport(QWidget):
         self._storyboard = storyboard
         self.update_view()
 
-    def set_options(self, **overlays: bool) -> None:
-        """Show or hide overlays by SceneOptions field, e.g. set_options(ghosts=False)."""
-        self.options = replace(self.options, **overlays)
-        self.update_view()
+    def set_scene_options(self, options: SceneOptions) -> None:
+        """Which overlays to draw (keyframe ghosts, sketched and generated paths)."""
+        if options != self.options:
+            self.options = options
+            self.update_view()
 
     @Slot(int)
     def set_frame(self, frame: int) -> None:

@@ -40,10 +40,10 @@ from torch.utils.data import Dataset
 
 from .clip import ClipError, MotionClip
 from .controls import build_controls
-from .models.slots import MODEL_FPS, NUM_HUMANS, fixed_controls
-from .io.resample import resample_clip
-from .objects import NUM_ANCHORS
 from .geometry.rotations import matrix_to_quat, quat_to_matrix
+from .io.resample import resample_clip
+from .models.slots import MODEL_FPS, NUM_HUMANS, fixed_controls
+from .objects import NUM_ANCHORS
 from .sketchify import SketchifyConfig, sketchify
 
 # CMU salsa takes (lead/follow pair) that training never sees. Take 10 is the held-out pair

@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .clip import MotionClip
-from .io.bvh_export import write_bvh
 from .body import JOINT_RADII
-from .objects import DEFAULT_SIZES, ObjectSpec, local_to_world
+from .clip import MotionClip
 from .geometry.rotations import matrix_to_quat, rotation_between, sixd_to_matrix
+from .io.bvh_export import write_bvh
+from .objects import DEFAULT_SIZES, ObjectSpec, local_to_world
 from .skeleton import CHILDREN, JOINT_NAMES, NUM_JOINTS, PARENTS
 from .storyboard import AGENT_COLORS
 

@@ -34,15 +34,14 @@ import numpy as np
 
 from ..clip import MotionClip
 from ..controls import Controls, build_controls
+from ..geometry.polylines import closest_on_polyline
+from ..geometry.rotations import matrix_to_6d
 from ..io.resample import resample_clip
 from ..objects import local_to_world
-from ..geometry.rotations import matrix_to_6d
 from ..sampling.events import GenerationResult, StepEvent
 from ..skeleton import HANDS, JOINT_INDEX, NUM_JOINTS, fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
-from ..geometry.polylines import closest_on_polyline
-from .adaptation import (fit_ground_rigid, keyframe_warp, sample_frames,
-                         smooth_offsets, transform_clip)
+from .adaptation import fit_ground_rigid, keyframe_warp, sample_frames, smooth_offsets, transform_clip
 
 JOINT, OBJECT_ROOT, OBJECT_CENTRE = 0, 1, 2   # kinds of sketch point
 _CLIP_FIELDS = tuple(f.name for f in fields(MotionClip))

@@ -23,7 +23,6 @@ from ..storyboard import Storyboard
 from .protocol import BenchItem, Protocol
 
 
-
 @dataclass(frozen=True)
 class Method:
     key: str                            # JSON key

@@ -30,7 +30,6 @@ from .feet import FeetConfig, lock_feet, settle_on_ground
 from .keys import key_frames
 from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
 
-
 TUNED_FPS = 20.0   # the configs' durations (their DURATIONS fields) are frames at this rate
 
 

@@ -22,8 +22,8 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..body import BONES, JOINT_RADII, body_points
-from ..objects import ObjectSpec, local_to_world, world_to_local
 from ..geometry.rotations import normalize, quat_to_matrix
+from ..objects import ObjectSpec, local_to_world, world_to_local
 from ..skeleton import HANDS, JOINT_INDEX, JOINT_NAMES
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard

@@ -20,8 +20,9 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from .alignment import LatentProjectionHead
 from .ctmc import PhasePlanner, PhasePlannerConfig
-from .encoders import EncoderConfig, LatentProjectionHead, SketchConditioner
+from .encoders import EncoderConfig, SketchConditioner
 from .potential import LatentPotential, PotentialConfig
 from .student import RectifiedFlowStudent
 from .surrogate import JacobianSurrogate, SurrogateConfig

@@ -30,8 +30,8 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..objects import NUM_ANCHORS
-from ..state_vector import HUMAN_DIM, SceneLayout
 from ..skeleton import NUM_JOINTS
+from ..state_vector import HUMAN_DIM, SceneLayout
 
 Decoder = Callable[[torch.Tensor], "dict[str, torch.Tensor] | torch.Tensor"]
 DEFAULT_LAYOUT = SceneLayout(num_humans=2, anchors_per_object=(NUM_ANCHORS,))

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..body import hand_centres
 from ..camera import StoryboardCamera
 from ..clip import MotionClip
-from ..objects import ObjectSpec
 from ..geometry.rotations import matrix_to_6d, rotation_between
+from ..objects import ObjectSpec
 from ..skeleton import JOINT_INDEX, NUM_JOINTS, REST_PELVIS_HEIGHT, forward_kinematics
 from ..storyboard import Agent, Keypose, SceneObject, Storyboard, Trajectory
-from ..body import hand_centres
 from .scene import SceneState, scene_from_clip
 
 J = JOINT_INDEX

@@ -19,13 +19,14 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from ..objects import ObjectSpec
-from ..geometry.rotations import quat_to_matrix
 from ..body import HAND_RADIUS, hand_centres
+from ..geometry.rotations import quat_to_matrix
+from ..objects import ObjectSpec
 from .bodies import body_instances
 from .camera import OrbitCamera
 from .context import load_program, shared_context
 from .example import warm_up_scenes
+from .instances import InstanceStream, UnitMesh
 from .meshes import object_triangles, ribbon_quad, unit_quad, unit_ring
 from .scene import Polyline, SceneState
 
@@ -66,56 +67,6 @@ def _gl(m: np.ndarray) -> bytes:
     return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
 
 
-class _UnitMesh:
-    """An indexed mesh on the GPU that instance streams share: (vertices, indices) from meshes.py."""
-
-    def __init__(self, ctx: moderngl.Context, arrays: tuple[np.ndarray, np.ndarray], attribute: str):
-        vertices, indices = arrays
-        self.vertices, self.indices = ctx.buffer(vertices.tobytes()), ctx.buffer(indices.tobytes())
-        self.layout = (self.vertices, f"{vertices.shape[1]}f", attribute)
-
-    def release(self) -> None:
-        self.vertices.release()
-        self.indices.release()
-
-
-class _InstanceStream:
-    """A growable per-instance buffer and, per program that draws it, a vertex array that pairs
-    it with a shared unit mesh."""
-
-    def __init__(self, ctx: moderngl.Context, mesh: _UnitMesh, programs: list[moderngl.Program],
-                 instance_format: str, instance_attrs: tuple):
-        self.ctx, self.mesh, self.programs = ctx, mesh, programs
-        self.instance_layout = (instance_format + "/i", *instance_attrs)
-        self.buffer, self.vaos, self.count = None, [], 0
-
-    def upload(self, rows: np.ndarray) -> None:
-        data = np.ascontiguousarray(rows, np.float32)
-        self.count = len(data)
-        if self.count == 0:
-            return
-        if self.buffer is None or self.buffer.size < data.nbytes:
-            self.release()
-            self.buffer = self.ctx.buffer(reserve=max(data.nbytes * 2, 1024), dynamic=True)
-            # skip_errors: shadow programs do not read the colour attribute.
-            self.vaos = [self.ctx.vertex_array(p, [self.mesh.layout, (self.buffer, *self.instance_layout)],
-                                               index_buffer=self.mesh.indices, index_element_size=4,
-                                               skip_errors=True)
-                         for p in self.programs]
-        self.buffer.write(data)
-
-    def draw(self, program_index: int = 0) -> None:
-        if self.count:
-            self.vaos[program_index].render(instances=self.count)
-
-    def release(self) -> None:
-        for vao in self.vaos:
-            vao.release()
-        if self.buffer is not None:
-            self.buffer.release()
-        self.buffer, self.vaos = None, []
-
-
 class SceneRenderer:
     """Renders SceneStates at a fixed size; `resize` changes it. Not thread-safe: use it from
     the thread that first touched the shared context."""
@@ -146,15 +97,15 @@ class SceneRenderer:
         self.camera_programs = [capsule, sphere, self.prog_mesh, capsule_depth, sphere_depth]
         self.shadow_programs = [capsule_shadow, sphere_shadow, self.prog_mesh_shadow]
 
-        ring, quad, ribbon = self._meshes = [_UnitMesh(ctx, unit_ring(), "in_ring"),
-                                             _UnitMesh(ctx, unit_quad(), "in_corner"),
-                                             _UnitMesh(ctx, ribbon_quad(), "in_corner")]
-        self.bones = _InstanceStream(ctx, ring, [capsule, capsule_shadow], CAPSULE_FORMAT, CAPSULE_ATTRS)
-        self.spheres = _InstanceStream(ctx, quad, [sphere, sphere_shadow], SPHERE_FORMAT, SPHERE_ATTRS)
-        self.ghost_bones = _InstanceStream(ctx, ring, [capsule, capsule_depth], CAPSULE_FORMAT, CAPSULE_ATTRS)
-        self.ghost_spheres = _InstanceStream(ctx, quad, [sphere, sphere_depth], SPHERE_FORMAT, SPHERE_ATTRS)
-        self.paths = _InstanceStream(ctx, ribbon, [self.prog_path], PATH_FORMAT, PATH_ATTRS)
-        self.glows = _InstanceStream(ctx, quad, [self.prog_glow], SPHERE_FORMAT, SPHERE_ATTRS)
+        ring, quad, ribbon = self._meshes = [UnitMesh(ctx, unit_ring(), "in_ring"),
+                                             UnitMesh(ctx, unit_quad(), "in_corner"),
+                                             UnitMesh(ctx, ribbon_quad(), "in_corner")]
+        self.bones = InstanceStream(ctx, ring, [capsule, capsule_shadow], CAPSULE_FORMAT, CAPSULE_ATTRS)
+        self.spheres = InstanceStream(ctx, quad, [sphere, sphere_shadow], SPHERE_FORMAT, SPHERE_ATTRS)
+        self.ghost_bones = InstanceStream(ctx, ring, [capsule, capsule_depth], CAPSULE_FORMAT, CAPSULE_ATTRS)
+        self.ghost_spheres = InstanceStream(ctx, quad, [sphere, sphere_depth], SPHERE_FORMAT, SPHERE_ATTRS)
+        self.paths = InstanceStream(ctx, ribbon, [self.prog_path], PATH_FORMAT, PATH_ATTRS)
+        self.glows = InstanceStream(ctx, quad, [self.prog_glow], SPHERE_FORMAT, SPHERE_ATTRS)
         self._streams = [self.bones, self.spheres, self.ghost_bones, self.ghost_spheres, self.paths, self.glows]
         self._object_vaos: dict[tuple, tuple] = {}
         self._overlay_key: bytes | None = None  # what the ghost and path streams hold

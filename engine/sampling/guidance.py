@@ -12,7 +12,7 @@ from typing import Callable
 
 import torch
 
-from ..models.encoders import latent_energy
+from ..models.alignment import latent_energy
 from ..models.surrogate import exact_latent_gradient, flatten_motion
 from .config import SamplerConfig
 from .energies import ENERGIES, EnergyContext, EnergyWeights, total_energy

@@ -21,7 +21,7 @@ import torch
 from torch import nn
 from torch.utils.data import Dataset
 
-from ..models import ctmc, encoders, potential, student, surrogate
+from ..models import alignment, ctmc, encoders, potential, student, surrogate
 from ..models.bundle import build_parts
 from ..models.vqvae import mean_joint_error
 from . import checkpoint
@@ -103,7 +103,7 @@ def _encoders(parts, cfg, runs, dataset) -> StageTask:
 
     def loss(batch, g, step):
         s2d, s3d = cond.embed_2d(batch), cond.embed_3d(batch, batch)
-        align, parts_a = encoders.alignment_loss(s2d, s3d, encoders.condition_presence(batch), cond.cfg)
+        align, parts_a = alignment.alignment_loss(s2d, s3d, encoders.condition_presence(batch), cond.cfg)
         lift, parts_l = encoders.lift_loss(cond.lift(batch), batch, batch)
         return {"loss": align + lift, **{k: v.detach() for k, v in {**parts_a, **parts_l}.items()}}
 
@@ -215,12 +215,12 @@ def _student2(parts, cfg, runs, dataset) -> StageTask:
         terms, sample, v = student.phase1_losses(stu, teacher, z0, enc.conditioning, pos,
                                                  plan.occupancy.detach(), g)
         terms["ctmc"], _ = ctmc.ctmc_loss(plan, batch["phase"], batch["has_labels"], planner.cfg)
-        terms["lat"], _ = encoders.latent_alignment_loss(head, z0, s3d, enc.present, cond.cfg)
+        terms["lat"], _ = alignment.latent_alignment_loss(head, z0, s3d, enc.present, cond.cfg)
         # Total potential V_psi + lambda_lat E_lat at the student's state; raw-space energies
         # join once they can be built from batched controls (see report).
         z = sample.z_t.detach().requires_grad_(True)
         with torch.enable_grad():
-            total_v = pot(z) + weights.lat * encoders.latent_energy(head, z, enc.s2d, enc.present)
+            total_v = pot(z) + weights.lat * alignment.latent_energy(head, z, enc.s2d, enc.present)
             (grad_v,) = torch.autograd.grad(total_v.sum(), z)
         terms["lyap"] = potential.lyapunov_loss(grad_v, -v, pot.cfg.kappa)
         terms["consist"] = student.consistency_loss(stu, sample, pos, plan.occupancy.detach(), v)

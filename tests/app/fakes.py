@@ -6,16 +6,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from app.document import new_storyboard
 from app.generation import GenerationSettings
+from app.poses import standing_pose_2d
 from engine.clip import MotionClip
-from engine.objects import ObjectSpec
 from engine.geometry.rotations import matrix_to_6d
+from engine.objects import ObjectSpec
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.skeleton import JOINT_INDEX, NUM_JOINTS, rest_pose
 from engine.storyboard import Contact, Keypose, ObjectKey, ObjectPath, SceneObject, Storyboard, Trajectory
-
-from app.document import new_storyboard
-from app.poses import standing_pose_2d
 
 
 def walking_clip(length: int, fps: float, progress: float = 1.0) -> MotionClip:

@@ -10,7 +10,7 @@ from functools import lru_cache
 import numpy as np
 import pytest
 import torch  # noqa: F401  as main() does: loaded before the window
-from PySide6.QtCore import QThread, Qt
+from PySide6.QtCore import Qt, QThread
 
 import app.generation
 from app.examples import EXAMPLES_DIR
@@ -69,11 +69,11 @@ def test_real_generation_streams_every_step_to_the_strip_and_the_view(qtbot, qap
     sb = window.doc.storyboard
     window.doc.set_settings(GenerationSettings(steps=3, seed=1, use_energy=False))
     events = []
-    window.runner.step.connect(events.append)
+    window.session.stepped.connect(events.append)
     previews = record_calls(monkeypatch, window.viewport, "set_preview")
     phases = record_calls(monkeypatch, window.phase_strip, "set_phase")
 
-    with qtbot.waitSignal(window.runner.finished, timeout=60_000) as finished:
+    with qtbot.waitSignal(window.session.finished, timeout=60_000) as finished:
         window.generate()
     result = finished.args[0]
 
@@ -94,8 +94,8 @@ def test_cancel_mid_run_keeps_the_previous_result(qtbot, qapp, real_window, dial
     window = real_window
     window.doc.set_settings(GenerationSettings(steps=40, use_energy=False))
     events = []
-    window.runner.step.connect(events.append)
-    with qtbot.waitSignal(window.runner.cancelled, timeout=60_000):
+    window.session.stepped.connect(events.append)
+    with qtbot.waitSignal(window.session.cancelled, timeout=60_000):
         window.generate()
         qtbot.waitUntil(lambda: len(events) >= 1, timeout=30_000)
         qtbot.keyClick(window, Qt.Key_Escape)

@@ -80,9 +80,9 @@ def test_generation_streams_every_step_in_order(qtbot, make_window):
     probe.timeout.connect(lambda: (gaps.append(clock.restart())))
     clock.start()
     probe.start(5)
-    with qtbot.waitSignal(window.runner.finished, timeout=10_000):
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
         window.generate()
-        assert window.runner.running and window.act_cancel.isEnabled()
+        assert window.session.running and window.act_cancel.isEnabled()
     probe.stop()
 
     streamed = [p for p in previews if p is not None]
@@ -96,7 +96,7 @@ def test_generation_streams_every_step_in_order(qtbot, make_window):
     spread = [np.abs(np.diff(p.joints[:, 0, 0, 1])).mean() for p in streamed]
     assert spread == sorted(spread, reverse=True)
     assert window.doc.clip is not None and window.doc.phase is not None
-    assert not window.runner.running and not window.act_cancel.isEnabled()
+    assert not window.session.running and not window.act_cancel.isEnabled()
     # The first gap is the probe's own start; the 3D view renders every preview it is shown.
     p50, p99 = np.percentile(gaps[1:], [50, 99])
     print(f"GUI-thread gaps during generation: p50 {p50:.0f} ms, p99 {p99:.0f} ms, worst {max(gaps[1:])} ms "
@@ -123,8 +123,8 @@ def test_a_fast_sampler_hands_over_a_step_per_interval_and_always_the_last(qtbot
     load_sample(window)
     window.doc.set_settings(window.doc.settings.__class__(steps=30))
     shown = []
-    window.runner.step.connect(shown.append)
-    with qtbot.waitSignal(window.runner.finished, timeout=10_000):
+    window.session.stepped.connect(shown.append)
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
         window.generate()
     qtbot.wait(50)
     decoded = [e.step for e in made if "preview" in e.__dict__]
@@ -136,7 +136,7 @@ def test_cancel_stops_within_one_step(qtbot, make_window, dialogs):
     sampler = FakeSampler(delay_s=0.05)
     window = make_window(generate=sampler)
     window.doc.set_settings(window.doc.settings.__class__(steps=200))
-    with qtbot.waitSignal(window.runner.cancelled, timeout=10_000):
+    with qtbot.waitSignal(window.session.cancelled, timeout=10_000):
         window.generate()
         qtbot.waitUntil(lambda: len(sampler.yielded) >= 3, timeout=5000)
         qtbot.keyClick(window, Qt.Key_Escape)
@@ -150,7 +150,7 @@ def test_sampler_error_becomes_a_dialog(qtbot, make_window, dialogs):
     window = make_window(generate=FakeSampler(fail_at=2))
     load_sample(window)
     before = window.doc.storyboard.to_json()
-    with qtbot.waitSignal(window.runner.failed, timeout=10_000):
+    with qtbot.waitSignal(window.session.failed, timeout=10_000):
         window.generate()
     assert len(dialogs.errors) == 1 and "ran out of patience" in dialogs.errors[0]
     assert window.doc.storyboard.to_json() == before and window.doc.clip is None
@@ -234,7 +234,7 @@ def test_the_view_says_when_the_sketch_changed_since_its_motion(qtbot, make_wind
     window = make_window(generate=FakeSampler(delay_s=0.01))
     load_sample(window)
     doc, view = window.doc, window.viewport
-    with qtbot.waitSignal(window.runner.finished, timeout=10_000):
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
         window.generate()
     assert view.num_frames and view.notice == ""
 
@@ -244,8 +244,8 @@ def test_the_view_says_when_the_sketch_changed_since_its_motion(qtbot, make_wind
     assert view.notice == ""
 
     slow = FakeSampler(delay_s=0.05)            # an edit made while generating: outdated on arrival
-    window._generate = slow
-    with qtbot.waitSignal(window.runner.finished, timeout=10_000):
+    window.session.generate = slow
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
         window.generate()
         qtbot.waitUntil(lambda: len(slow.yielded) >= 1, timeout=5000)
         doc.undo_stack.push(cmd.SetTiming(doc, 30.0))
@@ -269,12 +269,12 @@ def test_the_cpu_threads_preference_reaches_the_sampler_and_is_kept(qtbot, make_
     qtbot.mouseClick(menu, Qt.LeftButton, pos=menu.actionGeometry(window.threads_actions[1]).center())
     assert window.threads_actions[1].isChecked() and window.threads_preference() == 1
     window.generate()
-    qtbot.waitUntil(lambda: not window.runner.running, timeout=10_000)
+    qtbot.waitUntil(lambda: not window.session.running, timeout=10_000)
     assert seen[-1].threads == 1
     assert seen[-1].reserve_cores == (1.0 if window.viewport.draws_on_cpu() else 0.0)
     assert make_window().threads_actions[1].isChecked()
 
     window.threads_actions[0].trigger()
     window.generate()
-    qtbot.waitUntil(lambda: not window.runner.running, timeout=10_000)
+    qtbot.waitUntil(lambda: not window.session.running, timeout=10_000)
     assert seen[-1].threads is None

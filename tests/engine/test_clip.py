@@ -3,10 +3,9 @@ import numpy as np
 import pytest
 
 from engine.clip import ClipError, MotionClip
+from engine.geometry.rotations import axis_angle_to_matrix, matrix_to_quat, sixd_to_matrix
 from engine.objects import ObjectSpec, local_to_world, world_to_local
-from engine.geometry.rotations import axis_angle_to_matrix, matrix_to_quat
 from engine.skeleton import forward_kinematics
-from engine.geometry.rotations import sixd_to_matrix
 
 
 def two_people(n=10):

@@ -9,10 +9,9 @@ from torch.utils.data import DataLoader
 
 from engine.clip import ClipError, MotionClip
 from engine.controls import Controls
-from engine.io.resample import resample_clip
-from engine.dataset import (HELD_OUT_SALSA_TAKES, DatasetConfig, StoryboardWindows, canonicalize,
-                            split_files)
+from engine.dataset import HELD_OUT_SALSA_TAKES, DatasetConfig, StoryboardWindows, canonicalize, split_files
 from engine.geometry.rotations import sixd_to_matrix
+from engine.io.resample import resample_clip
 from engine.skeleton import REST_OFFSETS, forward_kinematics
 from tests.engine.test_sketchify import carry_clip, handshake_clip
 

@@ -9,12 +9,18 @@ import struct
 import numpy as np
 import pytest
 
-from engine.objects import ObjectSpec, local_to_world
 from engine.clip import MotionClip
-from engine.export import (add_export_arguments, export_bvh_dir, export_gltf, export_npz,
-                           export_object_path, export_requested)
-from engine.io.bvh import read_bvh
+from engine.export import (
+    add_export_arguments,
+    export_bvh_dir,
+    export_gltf,
+    export_npz,
+    export_object_path,
+    export_requested,
+)
 from engine.geometry.rotations import axis_angle_to_matrix, matrix_to_6d, quat_to_matrix
+from engine.io.bvh import read_bvh
+from engine.objects import ObjectSpec, local_to_world
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_PELVIS_HEIGHT, forward_kinematics
 
 FRAMES = 30

@@ -1,13 +1,25 @@
 """Skeleton, rotations and scene flattening: round trips as properties."""
 import numpy as np
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from engine.geometry import rotations as rot
+from engine.skeleton import (
+    FEET,
+    JOINT_INDEX,
+    MIRROR,
+    NUM_JOINTS,
+    PARENTS,
+    REST_OFFSETS,
+    REST_PELVIS_HEIGHT,
+    bone_lengths,
+    fit_offsets,
+    forward_kinematics,
+    inverse_kinematics,
+    rest_pose,
+)
 from engine.state_vector import SceneLayout
-from engine.skeleton import (FEET, JOINT_INDEX, MIRROR, NUM_JOINTS, PARENTS, REST_OFFSETS,
-                             REST_PELVIS_HEIGHT, bone_lengths, fit_offsets, forward_kinematics,
-                             inverse_kinematics, rest_pose)
 
 finite = st.floats(-3.0, 3.0, allow_nan=False, width=64)
 rotvecs = arrays(np.float64, (4, NUM_JOINTS, 3), elements=st.floats(-2.5, 2.5, width=64))

@@ -8,8 +8,8 @@ import pytest
 from engine.camera import StoryboardCamera
 from engine.cli import main
 from engine.clip import MotionClip
-from engine.objects import local_to_world
 from engine.geometry.rotations import axis_angle_to_matrix, matrix_to_6d
+from engine.objects import local_to_world
 from engine.skeleton import JOINT_INDEX, REST_PELVIS_HEIGHT, forward_kinematics
 from engine.sketchify import SketchifyConfig, choose_keyframes, sketchify
 from engine.storyboard import Storyboard

@@ -9,10 +9,11 @@ import torch
 from torch import Tensor
 
 from ...body import BONES, SPHERE_RADII
+from ...geometry.rotations_torch import safe_norm
 from ...objects import ObjectSpec
 from ...skeleton import NUM_JOINTS
-from ...geometry.rotations_torch import safe_norm
 from .context import _EPS, _TABLES, EnergyContext, _const
+
 
 def project(points: Tensor, ctx: EnergyContext) -> Tensor:
     """World points (B, ..., 3) -> sketch-plane points (B, ..., 2) through the storyboard camera."""

@@ -7,12 +7,13 @@ import math
 import torch
 from torch import Tensor
 
+from ...body import SPHERE_RADII
+from ...geometry.rotations_torch import quat_to_matrix, safe_norm
 from ...objects import ObjectSpec
 from ...skeleton import NUM_JOINTS
 from .context import _FOOT_JOINTS, _TABLES, EnergyConfig, EnergyContext, _const
-from ...geometry.rotations_torch import quat_to_matrix, safe_norm
-from ...body import SPHERE_RADII
 from .geometry import _SPHERE_ENDS, _pairs, _per_constraint, _sphere_centres_all, object_sdf
+
 
 def _stance(feet: Tensor, fps: float, cfg: EnergyConfig) -> Tensor:
     """Soft stance weight of feet (B, N, H, 2, 3) per frame -> (B, N, H, 2), no gradient.

@@ -7,10 +7,10 @@ import pytest
 from engine.baselines import AdaptConfig, IndexConfig, RetrievalIndex, adapt, retrieve, sample_retrieval
 from engine.baselines.adaptation import sample_frames, transform_clip
 from engine.clip import MotionClip
-from engine.metrics import adherence
 from engine.geometry.rotations import axis_angle_to_matrix, matrix_to_6d
-from engine.sketchify import sketchify
+from engine.metrics import adherence
 from engine.skeleton import REST_OFFSETS, REST_PELVIS_HEIGHT, forward_kinematics
+from engine.sketchify import sketchify
 
 FRAMES = 80
 UNIFORM = AdaptConfig(retime=False, blend=False)

@@ -7,14 +7,23 @@ import torch
 from engine.camera import StoryboardCamera
 from engine.clip import MotionClip
 from engine.controls import build_controls
-from engine.objects import NUM_ANCHORS
-from engine.evaluation import (EvaluatorConfig, EvaluatorError, MotionEvaluator, embedding_diversity, fid,
-                               load_evaluator, motion_embeddings, r_precision_top3, save_evaluator,
-                               story_embeddings)
+from engine.evaluation import (
+    EvaluatorConfig,
+    EvaluatorError,
+    MotionEvaluator,
+    embedding_diversity,
+    fid,
+    load_evaluator,
+    motion_embeddings,
+    r_precision_top3,
+    save_evaluator,
+    story_embeddings,
+)
 from engine.evaluation.evaluator import motion_batch, story_batch
 from engine.evaluation.features import motion_features, story_features
 from engine.evaluation.train_evaluator import FeatureCache, TrainConfig, fit, main
 from engine.geometry.rotations import matrix_to_6d
+from engine.objects import NUM_ANCHORS
 from engine.skeleton import JOINT_INDEX, rest_pose
 from engine.sketchify import sketchify
 

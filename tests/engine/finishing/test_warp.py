@@ -2,14 +2,14 @@
 import numpy as np
 import pytest
 
+from engine.controls import build_controls
 from engine.finishing import consistent_skeleton, finish
 from engine.finishing.keys import key_frames, spread
 from engine.finishing.warp import follow_paths, sketched_scale, solve_keypose, warp_to_keyposes
 from engine.geometry.polylines import point_polyline_distance
 from engine.metrics import keypose_errors_2d
-from engine.controls import build_controls
-from engine.sketchify import sketchify
 from engine.skeleton import bone_lengths, fit_offsets
+from engine.sketchify import sketchify
 from engine.synth import synthesize
 
 

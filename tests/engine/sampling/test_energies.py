@@ -11,8 +11,7 @@ from engine.sampling import energies as E
 from engine.sampling.energies.context import _EPS
 from engine.sampling.energies.geometry import _invalid_bias, _soft_segments_sq_distance
 from engine.skeleton import FEET, HANDS, JOINT_INDEX, rest_pose
-from engine.storyboard import (Agent, Contact, Keypose, ObjectPath, SceneObject, Storyboard,
-                               Trajectory)
+from engine.storyboard import Agent, Contact, Keypose, ObjectPath, SceneObject, Storyboard, Trajectory
 
 torch.set_num_threads(1)
 N = 40

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 import torch
 
+from engine.metrics import adherence
 from engine.models.bundle import ModelConfig, untrained_bundle
 from engine.models.teacher import VPSchedule
 from engine.request import Request
 from engine.sampling.config import SamplerConfig, SamplerError
 from engine.sampling.sampler import sample as sample_request
 from engine.storyboard import Agent, Storyboard
-from engine.metrics import adherence
 
 EXAMPLE = "resources/examples/box_handoff.json"
 

@@ -8,9 +8,9 @@ import pytest
 
 from engine.cli import main
 from engine.clip import PHASES, MotionClip
+from engine.geometry.rotations import quat_to_matrix, sixd_to_matrix
 from engine.metrics import foot_skate_ratio
 from engine.objects import ObjectSpec, local_to_world
-from engine.geometry.rotations import quat_to_matrix, sixd_to_matrix
 from engine.skeleton import FEET, HANDS, JOINT_INDEX, PARENTS, bone_lengths, forward_kinematics
 from engine.synth import SCENARIOS, synthesize, write_dataset
 

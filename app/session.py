@@ -1,0 +1,106 @@
+"""One generation at a time, as a model the widgets observe (napari style: no widgets here).
+
+The session owns what a generation is while it runs: the storyboard it was asked for (a copy:
+edits during the run do not reach it), the settings, the newest streamed step and its preview,
+and the runner thread. When it ends, the result goes into the document (`Document.set_result`),
+which keeps it; the session then says whether that result is outdated by edits since.
+
+    session.start(settings) -> str | None    None when started, else why not (one line)
+    session.cancel()
+    session.running, session.latest (StepEvent | None), session.outdated (bool)
+Signals: runningChanged(bool), stepped(StepEvent), finished(GenerationResult), failed(str),
+cancelled(), outdatedChanged(bool).
+"""
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+
+from PySide6.QtCore import QObject, Signal
+
+from engine.sampling.events import GenerationResult, StepEvent
+from engine.storyboard import Storyboard, StoryboardError
+
+from .document import Document
+from .generation import GenerationSettings, StepStream
+from .worker import GenerationRunner
+
+
+class GenerationSession(QObject):
+    runningChanged = Signal(bool)
+    stepped = Signal(object)          # StepEvent: its preview is decoded already (on the worker)
+    finished = Signal(object)         # GenerationResult, after the document holds it
+    failed = Signal(str)
+    cancelled = Signal()
+    outdatedChanged = Signal(bool)
+
+    def __init__(self, document: Document, generate: Callable[[Storyboard, GenerationSettings], StepStream],
+                 parent: QObject | None = None):
+        super().__init__(parent)
+        self._doc = document
+        self.generate = generate          # storyboard, settings -> a stream of steps (the sampler, or a fake)
+        self._runner = GenerationRunner(self)
+        self.storyboard: Storyboard | None = None     # what the running (or last) generation was asked for
+        self.settings: GenerationSettings | None = None
+        self.latest: StepEvent | None = None          # the newest streamed step while running
+        self._outdated = False
+        self._runner.runningChanged.connect(self.runningChanged)
+        self._runner.step.connect(self._on_step)
+        self._runner.finished.connect(self._on_finished)
+        self._runner.failed.connect(self._on_failed)
+        self._runner.cancelled.connect(self._on_cancelled)
+        document.storyboardChanged.connect(self._update_outdated)
+        document.resultChanged.connect(self._update_outdated)
+
+    @property
+    def running(self) -> bool:
+        return self._runner.running
+
+    @property
+    def outdated(self) -> bool:
+        return self._outdated
+
+    def start(self, settings: GenerationSettings) -> str | None:
+        """Generate the document's storyboard as it is now; None when started, else why not."""
+        if self.running:
+            return "A generation is running: wait for it, or press Esc to cancel it."
+        storyboard = copy.deepcopy(self._doc.storyboard)
+        try:
+            storyboard.validate()
+        except StoryboardError as e:
+            return f"The storyboard cannot be generated from: {e}"
+        self.storyboard, self.settings, self.latest = storyboard, settings, None
+        generate = self.generate
+        self._runner.start(lambda: generate(storyboard, settings))
+        return None
+
+    def cancel(self) -> None:
+        self._runner.cancel()
+
+    def shutdown(self) -> None:
+        """Cancel and join the thread (window close, tests)."""
+        self._runner.shutdown()
+
+    def _on_step(self, event: StepEvent) -> None:
+        self.latest = event
+        self.stepped.emit(event)
+
+    def _on_finished(self, result: GenerationResult) -> None:
+        clips = list(result.clips)
+        self.latest = None
+        self._doc.set_result(clips, clips[0].phase if clips else None, source=self.storyboard)
+        self.finished.emit(result)
+
+    def _on_failed(self, message: str) -> None:
+        self.latest = None
+        self.failed.emit(message)
+
+    def _on_cancelled(self) -> None:
+        self.latest = None
+        self.cancelled.emit()
+
+    def _update_outdated(self) -> None:
+        outdated = self._doc.result_outdated
+        if outdated != self._outdated:
+            self._outdated = outdated
+            self.outdatedChanged.emit(outdated)

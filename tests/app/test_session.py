@@ -1,0 +1,63 @@
+"""The generation session as a model: it starts from a copy of the storyboard, refuses what it
+cannot run in one line, streams steps, hands the result to the document, and says when edits
+have made that result outdated."""
+from dataclasses import replace
+
+from app import commands as cmd
+from app.document import Document
+from app.generation import GenerationSettings
+from app.session import GenerationSession
+
+from .fakes import FakeSampler, sample_storyboard
+
+
+def make_session(sampler=None):
+    doc = Document(sample_storyboard())
+    session = GenerationSession(doc, sampler or FakeSampler(delay_s=0.01))
+    return doc, session
+
+
+def test_a_generation_streams_and_its_result_goes_to_the_document(qtbot):
+    doc, session = make_session()
+    steps, running = [], []
+    session.stepped.connect(steps.append)
+    session.runningChanged.connect(running.append)
+    with qtbot.waitSignal(session.finished, timeout=10_000):
+        assert session.start(GenerationSettings(steps=4)) is None
+        assert session.running and session.start(GenerationSettings()) is not None   # one at a time
+    assert steps[0].step == 0 and steps[-1].step == 3 and running == [True, False]   # at most 10 a second, the last always
+    assert doc.clip is not None and session.latest is None and not session.outdated
+
+
+def test_edits_during_a_run_do_not_reach_it_and_make_its_result_outdated(qtbot):
+    sampler = FakeSampler(delay_s=0.05)
+    doc, session = make_session(sampler)
+    flags = []
+    session.outdatedChanged.connect(flags.append)
+    with qtbot.waitSignal(session.finished, timeout=10_000):
+        session.start(GenerationSettings(steps=4))
+        qtbot.waitUntil(lambda: len(sampler.yielded) >= 1, timeout=5000)
+        doc.undo_stack.push(cmd.SetTiming(doc, 30.0))
+    assert session.storyboard.fps == 20.0 and doc.storyboard.fps == 30.0
+    assert session.outdated and flags == [True]
+    doc.undo_stack.undo()
+    assert not session.outdated and flags == [True, False]
+
+
+def test_a_storyboard_that_cannot_be_generated_is_refused_in_one_line(qtbot):
+    doc, session = make_session()
+    bad = doc.storyboard.keyposes[0]
+    doc.storyboard.keyposes.append(replace(bad, agent="nobody"))
+    problem = session.start(GenerationSettings())
+    assert problem and "\n" not in problem and "nobody" in problem and not session.running
+
+
+def test_cancel_and_failure_leave_the_documents_result(qtbot):
+    doc, session = make_session(FakeSampler(delay_s=0.05))
+    with qtbot.waitSignal(session.cancelled, timeout=10_000):
+        session.start(GenerationSettings(steps=50))
+        session.cancel()
+    session.generate = FakeSampler(fail_at=1)
+    with qtbot.waitSignal(session.failed, timeout=10_000) as failed:
+        session.start(GenerationSettings(steps=3))
+    assert "patience" in failed.args[0] and doc.clip is None and not session.running
