@@ -152,25 +152,27 @@ def random_cotangents(batch: int, layout: SceneLayout = DEFAULT_LAYOUT, frames: 
     dense Gaussian; keyframe-like (joint positions of a few joints at 1-4 frames, as E_key's
     gradient); smooth (low-frequency in time on a few channels, as trajectory/contact terms)."""
     g = generator
+    device = g.device if g is not None else torch.device("cpu")   # draws where the generator lives
     dim = layout.dim
-    out = torch.zeros(batch, frames, dim)
+    out = torch.zeros(batch, frames, dim, device=device)
     positions = torch.tensor([h * HUMAN_DIM + j * 9 + c for h in range(layout.num_humans)
-                              for j in range(NUM_JOINTS) for c in range(3)])
-    time = torch.linspace(0, 1, frames)
+                              for j in range(NUM_JOINTS) for c in range(3)], device=device)
+    time = torch.linspace(0, 1, frames, device=device)
     for i in range(batch):
-        kind = int(torch.randint(3, (1,), generator=g))
+        kind = int(torch.randint(3, (1,), generator=g, device=device))
         if kind == 0:
-            out[i] = torch.randn(frames, dim, generator=g)
+            out[i] = torch.randn(frames, dim, generator=g, device=device)
         elif kind == 1:
-            at = torch.randint(frames, (int(torch.randint(1, 5, (1,), generator=g)),), generator=g)
-            joints = positions.view(-1, 3)[torch.randperm(len(positions) // 3, generator=g)[:6]].flatten()
-            out[i, at[:, None], joints[None]] = torch.randn(len(at), len(joints), generator=g)
+            count = int(torch.randint(1, 5, (1,), generator=g, device=device))
+            at = torch.randint(frames, (count,), generator=g, device=device)
+            joints = positions.view(-1, 3)[torch.randperm(len(positions) // 3, generator=g, device=device)[:6]].flatten()
+            out[i, at[:, None], joints[None]] = torch.randn(len(at), len(joints), generator=g, device=device)
         else:
-            chans = torch.randperm(dim, generator=g)[:24]
-            freq = torch.rand(3, 1, generator=g) * 4.0
-            phase = torch.rand(3, 1, generator=g) * 6.283
+            chans = torch.randperm(dim, generator=g, device=device)[:24]
+            freq = torch.rand(3, 1, generator=g, device=device) * 4.0
+            phase = torch.rand(3, 1, generator=g, device=device) * 6.283
             wave = torch.cos(6.283 * freq * time[None] + phase)               # (3, N)
-            out[i, :, chans] = (torch.randn(len(chans), 3, generator=g) @ wave).T
+            out[i, :, chans] = (torch.randn(len(chans), 3, generator=g, device=device) @ wave).T
     return out
 
 

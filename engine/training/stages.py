@@ -66,11 +66,15 @@ def _frozen(parts: dict, runs: Path, stage: str, names: tuple[str, ...], needed_
         parts[name].eval().requires_grad_(False)
 
 
+def _on(batch: dict[str, torch.Tensor], device: torch.device) -> dict[str, torch.Tensor]:
+    return {k: v.to(device) for k, v in batch.items()}
+
+
 def _latent(vqvae, batch: dict, generator: torch.Generator):
     """Clean latent z0 (B, T_lat, V, d) and the entity positions for the distance bias (or None)."""
     with torch.no_grad():
         z0 = vqvae.encode(batch)
-        drop = torch.rand((), generator=generator) < ENTITY_POS_DROP
+        drop = torch.rand((), generator=generator, device=generator.device) < ENTITY_POS_DROP
         pos = None if drop else vqvae.decode_lowres(z0)
     return z0, pos
 
@@ -88,9 +92,10 @@ def _vqvae(parts, cfg, runs, dataset) -> StageTask:
     vq.fit_normalizer(sample_batch(dataset, 256))
 
     def finish(trained, data):
-        std = trained["vqvae"].calibrate_latent_scale(sample_batch(data, 256))
+        device = next(trained.parameters()).device   # the model may be on a GPU, the data is not
+        std = trained["vqvae"].calibrate_latent_scale(_on(sample_batch(data, 256), device))
         trained["vqvae"].eval()
-        batch = sample_batch(data, 64)
+        batch = _on(sample_batch(data, 64), device)
         with torch.no_grad():
             decoded = trained["vqvae"].decode(trained["vqvae"].encode(batch))
         return {"latent_std": std, "joint_error_m": float(mean_joint_error(decoded["joints"], batch["joints"]))}
@@ -154,7 +159,7 @@ def _potential(parts, cfg, runs, dataset) -> StageTask:
 
     def loss(batch, g, step):
         z0, _ = _latent(vq, batch, g)
-        noise = torch.randn(z0.shape, generator=g)
+        noise = torch.randn(z0.shape, generator=g, device=z0.device)
         if step < warmup:
             total, terms = potential.ot_warmup_loss(pot, z0, noise, generator=g)
         else:
