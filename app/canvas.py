@@ -14,12 +14,12 @@ from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPainterPath, 
 from PySide6.QtWidgets import QWidget
 
 from engine.geometry.polylines import point_polyline_distance
+from engine.poses import standing_pose_2d
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 from engine.storyboard import SKETCH_LIMIT_M, Contact, ObjectPath, Trajectory
 
 from . import commands as cmd
 from .document import OBJECT_PATH, Document
-from .poses import standing_pose_2d
 from .strokes import clean_stroke, splice
 
 HIT_PX = 9.0            # how close (pixels) a click must be to a joint, stroke or anchor

@@ -7,6 +7,8 @@ and drawn paths differ between scenes and stay fixed between runs):
   noise         the first few of those scenes sketched at each noise level (same sketch seed, so
                 camera, keyframes and strokes chosen stay the same and only the roughness grows).
   real          120-frame windows of the held-out CMU salsa take (two people, no object).
+  artist        the first few scenes drawn the way artists draw (engine.bench.artist): by hand,
+                and posed with the canvas's tools; scored against the clean held-out clip.
 
 Held-out synthesized scenes: the test split of data/synth (engine.dataset.split_files: file
 number mod 1000 below 50) when that folder exists. Without it (a fresh clone), the same scenes
@@ -25,10 +27,12 @@ from ..dataset import HELD_OUT_SALSA_TAKES, split_files
 from ..sketchify import sketchify
 from ..storyboard import Storyboard
 from ..synth import SCENARIOS, synthesize
+from .artist import hand_drawn, posed_with_tools
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 RESERVED_TEST_SEEDS = range(0, 50)      # the seeds the split rule assigns to test (see docstring)
 NOISE_LEVELS = (0.2, 0.4, 0.6, 0.8)
+ARTIST_KINDS = {"drawn": hand_drawn, "posed": posed_with_tools}
 
 
 @dataclass
@@ -37,6 +41,7 @@ class ProtocolConfig:
     per_scenario: int = 10             # sketch-only storyboards per scenario
     noise_scenes: int = 10             # scenes re-sketched at each noise level
     noise_levels: tuple[float, ...] = NOISE_LEVELS
+    artist_scenes: int = 10            # scenes drawn both ways by engine.bench.artist
     real_windows: int = 3              # windows of the held-out salsa take
     window: int = 120                  # frames per real window (6 s at 20 fps)
     real_stride: int = 30
@@ -66,7 +71,8 @@ class Protocol:
 
 def held_out_scenes(config: ProtocolConfig) -> tuple[list[tuple[str, MotionClip, int]], str]:
     """`per_scenario` held-out scenes of each scenario as (id, clip, seed), and where they came from."""
-    wanted = max(config.per_scenario, -(-config.noise_scenes // len(config.scenarios)))
+    wanted = max(config.per_scenario, *(-(-count // len(config.scenarios))
+                                        for count in (config.noise_scenes, config.artist_scenes)))
     synth_dir = config.data_dir / "synth"
     by_scenario: dict[str, list[tuple[str, MotionClip, int]]] = {s: [] for s in config.scenarios}
     if synth_dir.is_dir() and any(synth_dir.glob("*.npz")):
@@ -136,4 +142,12 @@ def build_protocols(config: ProtocolConfig = ProtocolConfig()) -> list[Protocol]
     real = Protocol("real", "Held-out real pairs (CMU salsa take 10, two people, no object)", items,
                     [f"Source: {real_source}; {len(items)} windows of {config.window} frames."
                      + ("" if items else " Protocol skipped.")])
-    return [sketch_only, noise, real]
+    drawn = scenes[:config.artist_scenes]
+    artist = Protocol("artist", "Drawn the way artists draw (by hand, and posed with the app's tools)",
+                      [BenchItem(f"{i} {kind}", kind, 0.0, make(sketchify(c, config.keyframes, 0.0, seed), seed), c)
+                       for i, c, seed in drawn for kind, make in ARTIST_KINDS.items()],
+                      [f"{len(drawn)} scenes x {', '.join(ARTIST_KINDS)} (engine.bench.artist: figures stretched "
+                       f"up to 12%, joints 2-3 cm off, spine and collars often unplaced, keys and contact spans "
+                       f"a few frames off, strokes of 8-20 points, boxes as four corners; or the canvas's "
+                       f"standing template with the end effectors dragged); 3D errors against the clean clip."])
+    return [sketch_only, noise, real, artist]

@@ -8,6 +8,7 @@ labels (engine.metrics.contact_f1 / expected_calibration_error / brier_score).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -20,6 +21,7 @@ from ..request import Request
 from ..sampling.config import STEADY_GUIDANCE_RATE, SamplerConfig
 from ..sampling.sampler import sample
 from ..storyboard import Storyboard
+from .animator import animator_metrics
 from .protocol import BenchItem, Protocol
 
 
@@ -28,6 +30,7 @@ class Method:
     key: str                            # JSON key
     label: str                          # table row
     sampler: SamplerConfig | None       # None: the retrieval baseline
+    untrained: bool = False             # run on freshly initialised weights (what finishing alone does)
 
 
 OURS = Method("ours", "Ours", SamplerConfig(steps=30))
@@ -35,6 +38,11 @@ OURS = Method("ours", "Ours", SamplerConfig(steps=30))
 TEACHER_DDPM = Method("teacher_ddpm", "COLLAGE Teacher (DDPM-1000)", SamplerConfig(method="teacher-ddpm", finish=False))
 TEACHER_DDIM = Method("teacher_ddim", "COLLAGE Teacher (DDIM-50)",
                       SamplerConfig(method="teacher-ddim", steps=50, finish=False))
+# The fair comparison: the same finishing on the teacher, and on a model that learnt nothing.
+TEACHER_DDPM_FINISHED = Method("teacher_ddpm_fin", "Teacher (DDPM-1000) + finishing", SamplerConfig(method="teacher-ddpm"))
+TEACHER_DDIM_FINISHED = Method("teacher_ddim_fin", "Teacher (DDIM-50) + finishing",
+                               SamplerConfig(method="teacher-ddim", steps=50))
+UNTRAINED_FINISHED = Method("untrained_fin", "untrained + finishing", SamplerConfig(steps=30), untrained=True)
 RETRIEV_ADAPT = Method("retrievadapt", "RetrievAdapt", None)
 STEADY = Method("ours_steady", "Ours, steady", SamplerConfig(steps=30, guidance_max_rate=STEADY_GUIDANCE_RATE))
 ABLATIONS = (
@@ -45,7 +53,18 @@ ABLATIONS = (
     Method("wo_temporal_bias", "w/o temporal bias", SamplerConfig(steps=30, use_temporal_bias=False)),
     Method("trajectory_only", "trajectory-only", SamplerConfig(steps=30, trajectory_only=True)),
 )
-ALL_METHODS = (OURS, STEADY, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT) + ABLATIONS
+ALL_METHODS = (OURS, STEADY, TEACHER_DDPM, TEACHER_DDIM, TEACHER_DDPM_FINISHED, TEACHER_DDIM_FINISHED,
+               UNTRAINED_FINISHED, RETRIEV_ADAPT) + ABLATIONS
+
+
+@functools.lru_cache(maxsize=1)
+def _untrained_bundle():
+    from ..models.bundle import untrained_bundle
+    return untrained_bundle()
+
+
+def is_ddpm(method: Method) -> bool:
+    return method.sampler is not None and method.sampler.method == "teacher-ddpm"
 
 
 @dataclass
@@ -91,6 +110,7 @@ def generate(bundle, method: Method, storyboard: Storyboard, seed: int = 0, vari
             raise ValueError("the retrieval baseline needs an index")
         runs = [run_generation(sample_retrieval(index, storyboard, seed=seed + k), None) for k in range(variations)]
         return Generation([r.clips[0] for r in runs], sum(r.wall_time_s for r in runs), runs[0].first_step_s, 0)
+    bundle = _untrained_bundle() if method.untrained else bundle
     gen = sample(bundle, Request.build(storyboard, replace(method.sampler, seed=seed, variations=variations)))
     steps = []
     try:
@@ -104,9 +124,11 @@ def generate(bundle, method: Method, storyboard: Storyboard, seed: int = 0, vari
 
 
 def sample_metrics(clip: MotionClip, item: BenchItem) -> dict[str, float]:
-    """adherence() against the held-out clip, with contact timing scored per hand against the
-    synthesizer's labels (clip.contact probabilities vs reference.contact) where labels exist."""
-    figures = adherence(clip, item.storyboard, item.reference)
+    """adherence() against the held-out clip and what an animator looks at (bench.animator), with
+    contact timing scored per hand against the synthesizer's labels (clip.contact probabilities
+    vs reference.contact) where labels exist."""
+    figures = {**adherence(clip, item.storyboard, item.reference),
+               **animator_metrics(clip, item.storyboard, item.reference)}
     for key in ("ContactF1", "ECE", "Brier"):          # adherence's are against the storyboard's spans
         figures.pop(key, None)
     label = item.reference.contact
@@ -123,7 +145,7 @@ def run_protocol(bundle, protocol: Protocol, methods: tuple[Method, ...], config
     """Every method on every item of the protocol (DDPM on the first `ddpm_items` only)."""
     results = []
     for method in methods:
-        items = protocol.items[:config.ddpm_items] if method is TEACHER_DDPM else protocol.items
+        items = protocol.items[:config.ddpm_items] if is_ddpm(method) else protocol.items
         if config.cfg is not None and method.sampler is not None:
             method = replace(method, sampler=replace(method.sampler, cfg=config.cfg))
         for n, item in enumerate(items):

@@ -8,10 +8,10 @@ import numpy as np
 
 from app.document import new_storyboard
 from app.generation import GenerationSettings
-from app.poses import standing_pose_2d
 from engine.clip import MotionClip
 from engine.geometry.rotations import matrix_to_6d
 from engine.objects import ObjectSpec
+from engine.poses import standing_pose_2d
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.skeleton import JOINT_INDEX, NUM_JOINTS, rest_pose
 from engine.storyboard import Contact, Keypose, ObjectKey, ObjectPath, SceneObject, Storyboard, Trajectory

@@ -42,7 +42,7 @@ def tiny_run(tmp_path_factory):
     methods = (_few_steps(OURS), _few_steps(TEACHER_DDIM))
     config = BenchConfig(
         protocol=ProtocolConfig(scenarios=("carry_together", "handoff"), per_scenario=1, noise_scenes=1,
-                                noise_levels=(0.4,), real_windows=1, data_dir=data, shared_dir=root / "none"),
+                                artist_scenes=1, noise_levels=(0.4,), real_windows=1, data_dir=data, shared_dir=root / "none"),
         runner=RunnerConfig(variations=2, diversity_items=1, ddpm_items=0),
         speed=SpeedConfig(repeats=1, ddpm_repeats=1, lengths_s=(2.0, 6.0)),
         methods=methods, noise_methods=methods[:1], speed_methods=methods, scaling_methods=methods[:1],
@@ -56,8 +56,10 @@ def tiny_run(tmp_path_factory):
 
 def test_protocols_without_data_synthesize_reserved_seeds_and_skip_absent_real(tmp_path):
     protocols = build_protocols(ProtocolConfig(scenarios=("let_go",), per_scenario=1, noise_scenes=1,
-                                               noise_levels=(0.2, 0.8), data_dir=tmp_path, shared_dir=tmp_path))
-    sketch, noise, real = protocols
+                                               artist_scenes=1, noise_levels=(0.2, 0.8), data_dir=tmp_path,
+                                               shared_dir=tmp_path))
+    sketch, noise, real, artist = protocols
+    assert [i.group for i in artist.items] == ["drawn", "posed"]
     assert [i.id for i in sketch.items] == ["let_go/000001"] and sketch.items[0].noise == 0.0
     assert "reserved test seeds" in sketch.notes[0]
     assert [i.noise for i in noise.items] == [0.2, 0.8]
@@ -71,6 +73,7 @@ def test_markdown_has_every_table_and_the_command(tiny_run):
     _, md, _, root = tiny_run
     assert f"`sketch2colab bench --quick -o {root / 'BENCHMARKS.md'} --json {root / 'bench.json'}`" in md
     for heading in ("## Held-out synthesized scenes", "## Noise robustness", "## Held-out real pairs",
+                    "## Drawn the way artists draw", "What an animator looks at", "keepable-motion bounds",
                     "### Ours vs the COLLAGE Teacher", "## Speed", "## Diagnostics", "Sketch+text"):
         assert heading in md
     assert "| Ours | 2 |" in md and "| COLLAGE Teacher (DDIM-50) | 2 |" in md

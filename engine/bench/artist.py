@@ -1,0 +1,141 @@
+"""Storyboards drawn the way artists draw, from a clean traced one (engine.sketchify at noise 0).
+
+Traced storyboards are a home ground: 48-point paths, exact bone lengths, keys on the source's
+own frames. An artist's differ, and two kinds are made here, each from a seed:
+
+`hand_drawn`: figures stretched or squashed by up to 12% (per key, about the pelvis), every
+placed joint 2-3 cm off, spine and collar joints often left unplaced, interior keys and contact
+spans a few frames off, strokes short and wobbly (8-20 points), a box drawn as its four corners.
+`posed_with_tools`: what the app's keypose tool gives an artist who drags only the end effectors:
+the canvas's standing template (engine.poses) moved to the pelvis, with wrists, feet and head
+dragged to where they belong, elbows and knees left where the template had them; paths, object
+and contacts as in `hand_drawn`.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.polylines import resample_polyline
+from ..poses import standing_pose_2d
+from ..skeleton import JOINT_INDEX
+from ..storyboard import Keypose, Storyboard, StoryboardError
+
+UNPLACED_CANDIDATES = ("spine1", "spine2", "spine3", "l_collar", "r_collar")
+DRAGGED = ("head", "l_wrist", "r_wrist", "l_foot", "r_foot", "l_ankle", "r_ankle")
+
+
+@dataclass(frozen=True)
+class ArtistConfig:
+    stretch: float = 0.12              # figure scale per axis within 1 +- this
+    joint_offset_m: tuple[float, float] = (0.02, 0.03)
+    unplaced_share: float = 0.5        # chance that each spine / collar joint is left out
+    key_shift: int = 4                 # interior keys move by 1..this frames, either way
+    span_shift: int = 4                # contact span ends likewise
+    stroke_points: tuple[int, int] = (8, 20)
+    wobble_m: float = 0.015            # low-frequency wobble of a stroke, amplitude
+    corner_jitter_m: float = 0.02
+
+
+def hand_drawn(clean: Storyboard, seed: int, config: ArtistConfig = ArtistConfig()) -> Storyboard:
+    rng = np.random.default_rng(seed)
+    sb = _with_rough_paths_and_spans(clean, rng, config)
+    sb.keyposes = [_drawn_figure(k, rng, config) for k in _shifted_keys(clean, rng, config)]
+    return _valid(sb, clean)
+
+
+def posed_with_tools(clean: Storyboard, seed: int, config: ArtistConfig = ArtistConfig()) -> Storyboard:
+    rng = np.random.default_rng(seed)
+    sb = _with_rough_paths_and_spans(clean, rng, config)
+    template = standing_pose_2d(clean.camera)
+    sb.keyposes = [_posed_figure(k, template, rng, config) for k in _shifted_keys(clean, rng, config)]
+    return _valid(sb, clean)
+
+
+def _valid(sb: Storyboard, clean: Storyboard) -> Storyboard:
+    """The storyboard, or with the clean contact spans where shifted ones clash (a hand-off's
+    spans overlapping): the app refuses such a storyboard, so an artist would fix it."""
+    try:
+        sb.validate()
+    except StoryboardError:
+        sb.contacts = copy.deepcopy(clean.contacts)
+        sb.validate()
+    return sb
+
+
+def _shifted_keys(clean: Storyboard, rng: np.random.Generator, config: ArtistConfig) -> list[Keypose]:
+    """Keys at the first and last frame stay; interior ones move a few frames (per agent: each
+    key is placed by hand on the timeline)."""
+    last = clean.length - 1
+    out = []
+    for k in clean.keyposes:
+        frame = k.frame
+        if 0 < frame < last:
+            frame = int(np.clip(frame + rng.choice([-1, 1]) * rng.integers(1, config.key_shift + 1), 1, last - 1))
+        out.append(Keypose(k.agent, frame, k.points.copy(), k.mask.copy()))
+    seen, unique = set(), []
+    for k in out:  # two keys of one agent landing on one frame: the artist keeps one
+        if (k.agent, k.frame) not in seen:
+            seen.add((k.agent, k.frame))
+            unique.append(k)
+    return unique
+
+
+def _drawn_figure(k: Keypose, rng: np.random.Generator, config: ArtistConfig) -> Keypose:
+    pelvis = k.points[JOINT_INDEX["pelvis"]]
+    scale = 1.0 + rng.uniform(-config.stretch, config.stretch, 2)
+    points = pelvis + (k.points - pelvis) * scale
+    points = points + _offsets(rng, len(points), config)
+    mask = k.mask.copy()
+    for name in UNPLACED_CANDIDATES:
+        if rng.random() < config.unplaced_share:
+            mask[JOINT_INDEX[name]] = False
+    return Keypose(k.agent, k.frame, np.where(mask[:, None], points, 0.0), mask)
+
+
+def _posed_figure(k: Keypose, template: np.ndarray, rng: np.random.Generator, config: ArtistConfig) -> Keypose:
+    points = template + k.points[JOINT_INDEX["pelvis"]] + _offsets(rng, 1, config)   # placed by a click
+    for name in DRAGGED:
+        j = JOINT_INDEX[name]
+        if k.mask[j]:
+            points[j] = k.points[j] + _offsets(rng, 1, config)[0]
+    return Keypose(k.agent, k.frame, points, np.ones(len(points), bool))
+
+
+def _offsets(rng: np.random.Generator, count: int, config: ArtistConfig) -> np.ndarray:
+    """(count, 2) offsets of 2-3 cm in random directions."""
+    angle = rng.uniform(0, 2 * np.pi, count)
+    length = rng.uniform(*config.joint_offset_m, count)
+    return length[:, None] * np.stack([np.cos(angle), np.sin(angle)], -1)
+
+
+def _with_rough_paths_and_spans(clean: Storyboard, rng: np.random.Generator, config: ArtistConfig) -> Storyboard:
+    sb = copy.deepcopy(clean)
+    for t in sb.trajectories:
+        t.points = _wobbly(t.points, rng, config)
+    for p in sb.object_paths:
+        p.points = _wobbly(p.points, rng, config)
+    for key in sb.object_keys:
+        lo, hi = key.outline.min(0), key.outline.max(0)
+        corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+        key.outline = corners + rng.normal(0, config.corner_jitter_m / 2, corners.shape)
+    last = sb.length - 1
+    for c in sb.contacts:
+        start = c.start + rng.integers(-config.span_shift, config.span_shift + 1)
+        end = c.end + rng.integers(-config.span_shift, config.span_shift + 1)
+        c.start, c.end = int(np.clip(start, 0, last - 1)), int(np.clip(end, 1, last))
+        if c.end <= c.start:
+            c.end = min(c.start + 1, last)
+    return sb
+
+
+def _wobbly(points: np.ndarray, rng: np.random.Generator, config: ArtistConfig) -> np.ndarray:
+    """A stroke redrawn by hand: 8-20 points along it, with a slow sideways wobble."""
+    count = int(rng.integers(config.stroke_points[0], config.stroke_points[1] + 1))
+    drawn = resample_polyline(points, count)
+    s = np.linspace(0.0, 1.0, count)[:, None]
+    phase, freq = rng.uniform(0, 2 * np.pi, 2), rng.uniform(1.0, 2.5, 2)
+    wobble = config.wobble_m * np.sin(2 * np.pi * freq * s + phase)
+    return drawn + wobble

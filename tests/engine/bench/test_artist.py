@@ -1,0 +1,60 @@
+"""Artist-style storyboards and the animator's figures: the drawings differ from the traced one as
+an artist's do, stay valid, and the figures catch what an animator would reject."""
+import numpy as np
+import pytest
+
+from engine.bench.animator import animator_metrics, bone_change, foot_float, pop, timing
+from engine.bench.artist import UNPLACED_CANDIDATES, hand_drawn, posed_with_tools
+from engine.skeleton import JOINT_INDEX, rest_pose
+from engine.sketchify import sketchify
+from engine.synth import synthesize
+
+
+@pytest.fixture(scope="module")
+def scene():
+    clip = synthesize("handoff", 3)
+    return clip, sketchify(clip, 4, 0.0, 3)
+
+
+def test_hand_drawn_storyboards_look_drawn_and_stay_valid(scene):
+    clip, clean = scene
+    drawn = hand_drawn(clean, 7)
+    drawn.validate()
+    assert drawn.to_json() == hand_drawn(clean, 7).to_json() and drawn.to_json() != hand_drawn(clean, 8).to_json()
+    assert all(8 <= len(t.points) <= 20 for t in drawn.trajectories)
+    assert all(len(k.outline) == 4 for k in drawn.object_keys)
+    spine = [JOINT_INDEX[n] for n in UNPLACED_CANDIDATES]
+    assert any(not k.mask[spine].all() for k in drawn.keyposes)
+    moved = [np.linalg.norm(d.points[d.mask] - c.points[d.mask], axis=-1)
+             for d, c in zip(drawn.keyposes, clean.keyposes) if d.frame == c.frame]
+    assert moved and all(m.min() > 0.0 for m in moved)
+    assert {k.frame for k in drawn.keyposes} != {k.frame for k in clean.keyposes}   # interior keys moved
+
+
+def test_posed_storyboards_are_the_template_with_dragged_end_effectors(scene):
+    clip, clean = scene
+    posed = posed_with_tools(clean, 7)
+    posed.validate()
+    assert all(k.mask.all() for k in posed.keyposes)
+    elbow = JOINT_INDEX["l_elbow"]
+    for p in posed.keyposes:   # the elbow stays where the template has it, relative to the pelvis
+        others = [q for q in posed.keyposes if q is not p]
+        assert all(np.allclose(p.points[elbow] - p.points[0], q.points[elbow] - q.points[0]) for q in others)
+
+
+def test_the_animator_figures_catch_pops_floats_stretches_and_bad_timing(scene):
+    clip, clean = scene
+    walk = np.linspace(0.0, 3.0, 120)[:, None, None, None] * np.array([1.0, 0.0, 0.0])
+    joints = rest_pose()[None, None] + walk + np.array([[[[0.0, 0.0, 0.0]]], [[[0.0, 0.0, 1.0]]]]).reshape(1, 2, 1, 3)
+    assert pop(joints) < 1e-9 and bone_change(joints) < 1e-9
+    popped = joints.copy()
+    popped[60, 0, JOINT_INDEX["r_wrist"]] += (0.0, 0.3, 0.0)
+    assert pop(popped) > 0.25
+    assert foot_float(joints + (0.0, 0.1, 0.0)) > foot_float(joints) + 0.09
+    stretched = joints.copy()
+    stretched[30:, 0, JOINT_INDEX["l_wrist"]] += (0.05, 0.0, 0.0)
+    assert bone_change(stretched) > 0.04
+    hurried = joints[np.arange(len(joints)) ** 2 // len(joints)]     # stands still, then hurries
+    assert timing(hurried, joints, clean) > 0.2 and timing(joints, joints, clean) == 0.0
+    figures = animator_metrics(clip, clean, clip)
+    assert figures["Wrist@key"] == 0.0 and figures["Detour"] == 0.0 and figures["Timing"] == 0.0
