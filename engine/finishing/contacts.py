@@ -28,7 +28,7 @@ from ..skeleton import HANDS, JOINT_INDEX, JOINT_NAMES
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from ..synth.props import pose_array
-from ..synth.reach import UP, two_bone_ik, yaw_matrix
+from ..synth.reach import UP, steady_pole, two_bone_ik, yaw_matrix
 from ..synth.trajectory import blend_yaw, smoothstep
 
 SHOULDERS = (JOINT_INDEX["l_shoulder"], JOINT_INDEX["r_shoulder"])
@@ -44,7 +44,8 @@ SWIVELS = np.deg2rad(np.arange(-180, 180, 5))  # elbow angles about the shoulder
 
 @dataclass
 class ContactConfig:
-    DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "lift_frames", "smooth_sigma", "reach_smoothing")
+    DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "lift_frames", "smooth_sigma", "reach_smoothing",
+                                            "swivel_sigma")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
     lift_frames: int = 6           # frames a resting object eases into the holding hands' fit (and,
                                    # at least, a released one slides to its sketched landing place)
@@ -54,6 +55,9 @@ class ContactConfig:
     min_spread: float = 1e-4       # m^2: grip spread below which the yaw fit is undefined (one hand)
     clear_iterations: int = 4      # pushes of a held object out of its holders' bodies (0: none)
     swivel_cost: float = 0.01      # m of penetration worth turning an elbow by one radian
+    swivel_change_cost: float = 0.05   # m of penetration worth a one-radian turn between frames
+                                       # (squared: a turn spread over frames costs less)
+    swivel_sigma: float = 1.5      # frames at TUNED_FPS; smoothing of the chosen swivel angles
     reach: float = 0.95            # share of the straight arm's length a holder may reach without stepping
     reach_passes: int = 2          # steps towards the grips (smoothing leaves part of each one undone)
     reach_smoothing: float = 3.0   # frames; Gaussian sigma of a holder's step offsets
@@ -357,19 +361,61 @@ def _arm_penetration(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray,
     return depth
 
 
+def _swivelled(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Elbows (M, 3) turned about the shoulder-wrist line (which keeps both bone lengths) by
+    angles (M,) or, for candidates, (M, C) radians -> (M, 3) or (M, C, 3)."""
+    axis = normalize(wrist - shoulder)
+    centre = shoulder + np.sum((elbow - shoulder) * axis, -1, keepdims=True) * axis
+    out = elbow - centre
+    if angles.ndim == 2:
+        axis, centre, out = axis[:, None], centre[:, None], out[:, None]
+    cos, sin = np.cos(angles)[..., None], np.sin(angles)[..., None]
+    return centre + cos * out + sin * np.cross(axis, out)
+
+
 def _swivel_clear(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
-                  specs: list[ObjectSpec], cost: float) -> np.ndarray:
-    """Elbows (M, 3) turned about the shoulder-wrist line (which keeps both bone lengths) by the
-    angle of SWIVELS that best trades penetration into the objects (obj_pose (M, O, 7)) against
-    turning: `cost` metres of penetration per radian. shoulder, elbow, wrist (M, 3)."""
-    axis = normalize(wrist - shoulder)[:, None]
-    centre = shoulder[:, None] + np.sum((elbow[:, None] - shoulder[:, None]) * axis, -1, keepdims=True) * axis
-    out = elbow[:, None] - centre
-    cos, sin = np.cos(SWIVELS)[:, None], np.sin(SWIVELS)[:, None]
-    candidates = centre + cos * out + sin * np.cross(axis, out)                    # (M, C, 3)
+                  specs: list[ObjectSpec], config: "ContactConfig", runs: list[np.ndarray]) -> np.ndarray:
+    """Elbows (M, 3) swivelled about the shoulder-wrist line to trade penetration into the objects
+    (obj_pose (M, O, 7)) against turning (config.swivel_cost metres of penetration per radian)
+    and against turning fast (config.swivel_change_cost per squared radian between frames): `runs`
+    are index arrays of the consecutive frames of one arm, along which the angles are chosen
+    together (a per-frame choice flipped elbows to the other side in one frame, by up to 40 cm).
+    shoulder, elbow, wrist (M, 3)."""
+    grid = np.broadcast_to(SWIVELS, (len(elbow), len(SWIVELS)))
+    candidates = _swivelled(shoulder, elbow, wrist, grid)                              # (M, C, 3)
     depth = _arm_penetration(shoulder[:, None], candidates, wrist[:, None], obj_pose, specs)
-    score = np.maximum(depth, 0.0) + cost * np.abs(SWIVELS)
-    return candidates[np.arange(len(elbow)), np.argmin(score, axis=1)]
+    score = np.maximum(depth, 0.0) + config.swivel_cost * np.abs(SWIVELS)
+    turn = np.angle(np.exp(1j * (SWIVELS[:, None] - SWIVELS[None])))                  # (C, C) wrapped
+    change = config.swivel_change_cost * turn ** 2
+    angles = np.zeros(len(elbow))
+    for run in runs:
+        path = _cheapest_path(score[run], change)
+        smooth = gaussian_filter1d(np.unwrap(SWIVELS[path]), config.swivel_sigma, mode="nearest")
+        angles[run] = smooth
+    return _swivelled(shoulder, elbow, wrist, angles)
+
+
+def _cheapest_path(score: np.ndarray, change: np.ndarray) -> np.ndarray:
+    """Viterbi: the candidate per step (T,) minimising sum score[t, c_t] + change[c_t-1, c_t]."""
+    total, back = score[0].copy(), np.zeros(score.shape, int)
+    for t in range(1, len(score)):
+        options = total[:, None] + change                                          # from -> to
+        back[t] = np.argmin(options, axis=0)
+        total = options[back[t], np.arange(score.shape[1])] + score[t]
+    path = np.empty(len(score), int)
+    path[-1] = int(np.argmin(total))
+    for t in range(len(score) - 1, 0, -1):
+        path[t - 1] = back[t, path[t]]
+    return path
+
+
+def _arm_runs(frames: np.ndarray, people: np.ndarray) -> list[np.ndarray]:
+    """Index arrays into (frames, people) (M,) of each person's runs of consecutive frames."""
+    runs = []
+    for h in np.unique(people):
+        index = np.flatnonzero(people == h)                       # in frame order
+        runs += np.split(index, np.flatnonzero(np.diff(frames[index]) > 1) + 1)
+    return runs
 
 
 def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboard: Storyboard,
@@ -389,23 +435,21 @@ def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboar
     forward = _forward(joints)
     for side in range(2):
         moving = weight[..., side] > 0                                    # (N, H)
-        shoulder, elbow, wrist = (joints[..., j, :][moving]
-                                  for j in (SHOULDERS[side], ELBOWS[side], HANDS[side]))
-        upper = np.linalg.norm(elbow - shoulder, axis=-1, keepdims=True)
-        lower = np.linalg.norm(wrist - elbow, axis=-1, keepdims=True)
-        w = weight[..., side][moving][:, None]
-        goal = wrist + w * (target[:, :, side][moving] - wrist)
-        # Bend the elbow the way it bends now; a straight arm bends down and back.
+        shoulder, elbow, wrist = (joints[..., j, :] for j in (SHOULDERS[side], ELBOWS[side], HANDS[side]))
+        goal = wrist + weight[..., side, None] * (target[:, :, side] - wrist)   # (N, H, 3)
+        # Bend the elbow the way it bends now, smoothly over frames; a straight arm bends down and back.
         axis = normalize(goal - shoulder)
         bend = elbow - shoulder
         bend = bend - np.sum(bend * axis, axis=-1, keepdims=True) * axis
-        fallback = -UP - forward[moving]
-        pole = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-3 * upper, bend, fallback)
+        pole = steady_pole(bend, -UP - forward)[moving]
+        shoulder, elbow, wrist, goal = shoulder[moving], elbow[moving], wrist[moving], goal[moving]
+        upper = np.linalg.norm(elbow - shoulder, axis=-1, keepdims=True)
+        lower = np.linalg.norm(wrist - elbow, axis=-1, keepdims=True)
         new_elbow, new_wrist = two_bone_ik(shoulder, goal, upper, lower, pole)
         if obj_pose is not None and moving.any():
-            frames = np.nonzero(moving)[0]
+            frames, people = np.nonzero(moving)
             new_elbow = _swivel_clear(shoulder, new_elbow, new_wrist, obj_pose[frames],
-                                      [o.spec for o in storyboard.objects], config.swivel_cost)
+                                      [o.spec for o in storyboard.objects], config, _arm_runs(frames, people))
         out[..., ELBOWS[side], :][moving] = new_elbow
         out[..., HANDS[side], :][moving] = new_wrist
     return out

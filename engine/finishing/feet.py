@@ -24,7 +24,7 @@ from scipy.ndimage import distance_transform_edt, gaussian_filter1d, maximum_fil
 
 from ..geometry.rotations import normalize
 from ..skeleton import ANKLES, FEET, JOINT_INDEX
-from ..synth.reach import UP, two_bone_ik
+from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
 from .keys import closeness_to_keys
 
@@ -230,9 +230,10 @@ def _crouch(pose: np.ndarray, goals: list[np.ndarray], config: FeetConfig) -> np
 def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.ndarray:
     """Poses (M, 22, 3) with one leg (side 0 left, 1 right) re-solved from its fixed hip by exact
     two-bone IK so that the foot joint, riding rigidly on the ankle, reaches foot_goal (M, 3);
-    a goal out of reach straightens the leg towards it -> (M, 22, 3). The knee bends the way it
-    bends now (off the old hip-ankle line, so a foot planted ahead cannot flip it backwards); a
-    straight leg bends towards the facing."""
+    a goal out of reach straightens the leg towards it -> (M, 22, 3). The M poses are frames in
+    time order: the knee bends the way it bends now (off the old hip-ankle line, so a foot
+    planted ahead cannot flip it backwards), towards the facing as the leg straightens, turning
+    smoothly over the frames (steady_pole)."""
     hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
     out = poses.copy()
     foot_offset = poses[:, toe] - poses[:, ankle]
@@ -242,7 +243,7 @@ def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.nd
     bend = poses[:, knee] - poses[:, hip]
     bend -= np.sum(bend * axis, axis=-1, keepdims=True) * axis
     facing = np.cross(poses[:, HIPS[0]] - poses[:, HIPS[1]], UP)
-    pole = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-3, bend, facing)
+    pole = steady_pole(bend, facing)
     out[:, knee], out[:, ankle] = two_bone_ik(poses[:, hip], foot_goal - foot_offset, upper, lower, pole)
     out[:, toe] = out[:, ankle] + foot_offset
     return out

@@ -6,6 +6,7 @@ A person's heading is a yaw about +Y; yaw 0 faces +Z (the rest pose), so the for
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from ..geometry.rotations import normalize
 
@@ -67,3 +68,19 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, upper: float, lower: float
     middle = root + upper * (cos_root * axis + sin_root * side)
     end = root + reach * axis
     return middle, end
+
+
+def steady_pole(bend: np.ndarray, fallback: np.ndarray, sigma: float = 2.0, fallback_m: float = 0.02,
+                bent_m: float = 0.03) -> np.ndarray:
+    """Where a two-bone chain's middle joint should bend, turning smoothly over frames (axis 0).
+
+    bend (N, ..., 3): the middle joint's offset from the root-to-end line now (its length says
+    how bent the chain is); fallback (N, ..., 3): the way to bend when it is straight. A nearly
+    straight limb's bend direction swings from frame to frame, and IK towards it can flip an
+    elbow or a knee in one frame. There, the pole is each frame's direction weighted by how bent
+    the limb is, with `fallback_m` of the fallback, smoothed over `sigma` frames; a limb bent by
+    well over `bent_m` keeps its own bend exactly (so motion that needs no change gets none)."""
+    smooth = gaussian_filter1d(bend + fallback_m * normalize(fallback), sigma, axis=0, mode="nearest")
+    straight = np.exp(-0.5 * (np.linalg.norm(bend, axis=-1, keepdims=True) / bent_m) ** 2)
+    return bend + straight * (smooth - bend)
+

@@ -111,11 +111,13 @@ def test_an_elbow_in_an_object_swivels_out_keeping_its_bones():
     box = ObjectSpec("box")
     pose = np.array([[[0.35, 1.3, 0.0, 1.0, 0.0, 0.0, 0.0]]])  # (M, O, 7): the box's base at 1.3 m
     before = _arm_penetration(shoulder[:, None], elbow[:, None], wrist[:, None], pose, [box])
-    moved = _swivel_clear(shoulder, elbow, wrist, pose, [box], cost=0.01)
+    one = [np.array([0])]                                  # one frame: a run of its own
+    moved = _swivel_clear(shoulder, elbow, wrist, pose, [box], ContactConfig(), one)
     after = _arm_penetration(shoulder[:, None], moved[:, None], wrist[:, None], pose, [box])
     assert before[0, 0] > 0.05 and after[0, 0] <= 0.0
     clear = np.array([[0.15, 1.0, 0.1]])                   # an elbow already clear stays
-    np.testing.assert_allclose(_swivel_clear(shoulder, clear, wrist, pose, [box], cost=0.01), clear)
+    np.testing.assert_allclose(_swivel_clear(shoulder, clear, wrist, pose, [box], ContactConfig(), one), clear,
+                               atol=1e-12)
     for a, b in ((shoulder, elbow), (wrist, elbow)):
         np.testing.assert_allclose(np.linalg.norm(moved - a, axis=-1), np.linalg.norm(b - a, axis=-1))
 
@@ -254,3 +256,20 @@ def test_a_shared_hold_sits_within_every_holders_vertical_reach():
             rise = np.abs(anchors[span, c.anchor, 1] - joints[span, a, shoulder, 1])
             worst = max(worst, float(np.max(rise - config.grip_rise * config.reach * arm)))
         assert (worst < 0.02) == inside, worst
+
+
+def test_an_elbow_swivels_out_of_an_object_gradually_not_in_one_frame():
+    """Over consecutive frames the swivel is chosen as a path: an arm that must clear a box
+    from some frame on turns over several frames, never flipping by more than a few cm a frame."""
+    n = 20
+    shoulder, wrist = np.tile([0.0, 1.4, 0.0], (n, 1)), np.tile([0.45, 1.0, 0.0], (n, 1))
+    elbow = np.tile([0.3, 1.45, 0.0], (n, 1))
+    box = ObjectSpec("box")
+    pose = np.tile([0.35, 1.3, 0.0, 1.0, 0.0, 0.0, 0.0], (n, 1, 1))
+    pose[:10, 0, 1] = 3.0                                  # the box arrives at frame 10
+    moved = _swivel_clear(shoulder, elbow, wrist, pose, [box], ContactConfig(), [np.arange(n)])
+    after = _arm_penetration(shoulder[:, None], moved[:, None], wrist[:, None], pose, [box])
+    assert after[:10].max() <= 0.0 and after[13:].max() <= 0.005   # clear within a few frames
+    swing, steps = np.linalg.norm(moved[-1] - moved[0]), np.linalg.norm(np.diff(moved, axis=0), axis=-1)
+    assert swing > 0.2 and steps.max() < 0.4 * swing      # a per-frame choice made it in one step
+
