@@ -53,6 +53,7 @@ class FeetConfig:
     # A gliding foot is re-planted once it has drifted this far, after a step of step_frames.
     max_drift: float = 0.3           # m
     step_frames: int = 4
+    min_step_m: float = 0.05          # plants closer than this need no room to step between them
     step_height: float = 0.08        # m; peak of a made-up step (the synthesizer's swing lift)
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
     settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
@@ -122,6 +123,22 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
                 end = stop                       # no room for another plant: hold this one
             out.append((int(start), int(end)))
             start = end + config.step_frames
+    return _with_room_to_step(out, foot, config)
+
+
+def _with_room_to_step(intervals: list[tuple[int, int]], foot: np.ndarray, config: FeetConfig) -> list[tuple[int, int]]:
+    """A plant that ends fewer than step_frames before the next one starts, away from it, while
+    the foot has left it (by max_drift / 2) ends earlier, so that the foot takes step_frames to
+    get there: held to the end of its stance, a plant left the foot 0.4-0.7 m to cover in one
+    frame (a 20-30 cm pop of the knee)."""
+    out = list(intervals)
+    for i in range(len(out) - 1):
+        (s1, e1), (s2, e2) = out[i], out[i + 1]
+        plant = foot[s1:e1, [0, 2]].mean(0)
+        apart = np.linalg.norm(plant - foot[s2:e2, [0, 2]].mean(0))
+        left = np.linalg.norm(foot[e1 - 1, [0, 2]] - plant)
+        if s2 - e1 < config.step_frames and apart > config.min_step_m and left > config.max_drift / 2:
+            out[i] = (s1, max(s1 + config.min_stance_frames, min(e1, s2 - config.step_frames)))
     return out
 
 
