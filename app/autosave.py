@@ -12,6 +12,7 @@ from pathlib import Path
 
 from PySide6.QtCore import QObject, QTimer
 
+from engine.atomic import write_text
 from engine.storyboard import Storyboard
 
 from .document import Document
@@ -56,7 +57,7 @@ class Autosaver(QObject):
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
             self._doc.storyboard.save(self.directory / RECOVERY_FILE)
-            (self.directory / SOURCE_NOTE).write_text(str(self._doc.path or ""), encoding="utf-8")
+            write_text(self.directory / SOURCE_NOTE, str(self._doc.path or ""))
         except OSError as e:
             print(f"autosave skipped: {e}")
 

@@ -23,10 +23,9 @@ def main(argv: list[str] | None = None) -> int:
     if not has_display():
         print(NO_DISPLAY, file=sys.stderr)
         return 2
+    import torch  # noqa: F401  loaded now, not on the first Generate, where its import would stall the GUI
     from PySide6.QtCore import QSettings, QStandardPaths
     from PySide6.QtWidgets import QApplication
-
-    import torch  # noqa: F401  loaded now, not on the first Generate, where its import would stall the GUI
 
     from .examples import EXAMPLES_DIR
     from .generation import warm_up

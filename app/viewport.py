@@ -41,10 +41,11 @@ from __future__ import annotations
 
 import threading
 
-from PySide6.QtCore import QPointF, Qt, QTimer, Signal, Slot
+from PySide6.QtCore import QBuffer, QByteArray, QIODevice, QPointF, Qt, QTimer, Signal, Slot
 from PySide6.QtGui import QColor, QImage, QPainter
 from PySide6.QtWidgets import QWidget
 
+from engine.atomic import write_bytes
 from engine.clip import MotionClip
 from engine.objects import ObjectSpec
 from engine.render import (
@@ -178,7 +179,13 @@ class Viewport(QWidget):
     # ---- output --------------------------------------------------------------------------
     def grab_png(self, path: str) -> bool:
         """Save the widget as it looks now (the 3D image and its overlay text)."""
-        return self.grab().save(str(path), "PNG")
+        data = QByteArray()
+        buffer = QBuffer(data)
+        buffer.open(QIODevice.WriteOnly)
+        if not self.grab().save(buffer, "PNG"):
+            return False
+        write_bytes(path, bytes(data))
+        return True
 
     @property
     def ready(self) -> bool:

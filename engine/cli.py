@@ -8,6 +8,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .atomic import check_output_path
+
 
 class UserError(Exception):
     """Bad input from the user: printed as one line, exit code 2."""
@@ -29,6 +31,7 @@ def cmd_sketchify(args) -> int:
         raise UserError(f"--noise must be in [0, 1] (0.8 is the roughest training sketch), got {args.noise}")
     if args.keyframes < 0:
         raise UserError(f"--keyframes must be >= 0, got {args.keyframes}")
+    check_output_path(args.output)
     sb = sketchify(MotionClip.load(args.clip), args.keyframes, args.noise, args.seed)
     sb.save(args.output)
     print(f"{args.output}: {len(sb.keyframes())} keyframes, {len(sb.keyposes)} keyposes, "
@@ -44,6 +47,7 @@ def cmd_import_bvh(args) -> int:
         raise UserError(f"import-bvh takes one or two BVH files (lead, follow), got {len(args.files)}")
     if not args.fps > 0:
         raise UserError(f"--fps must be positive, got {args.fps}")
+    check_output_path(args.output)
     try:
         clip, report = import_bvh(args.files, ImportConfig(fps=args.fps), load_joint_map(args.map))
     except (BvhError, RetargetError) as e:
@@ -106,14 +110,16 @@ def _sampler_config(args):
 def cmd_generate(args) -> int:
     from pathlib import Path
 
-    from .export import export_requested
+    from .export import check_export_paths, export_requested
     from .generate import generate, print_summary, summary, write_outputs
     from .models.bundle import BundleError, load_bundle, load_default
     from .sampling.config import SamplerError
     from .storyboard import Storyboard
     sb = Storyboard.load(args.storyboard)
     config = _sampler_config(args)
-    Path(args.output).parent.mkdir(parents=True, exist_ok=True)  # fail before generating, not after
+    Path(args.output).parent.mkdir(parents=True, exist_ok=True)
+    check_output_path(args.output)                                # fail before generating, not after
+    check_export_paths(args)
     try:
         bundle = None if args.method == "retrieval" else (load_bundle(args.checkpoint) if args.checkpoint
                                                           else load_default())
@@ -239,6 +245,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def cmd_bench(args) -> int:
     from .bench.command import BenchError, bench_command
+    for path in (args.output, args.json):
+        if path:
+            check_output_path(path)
     try:
         bench_command(args.quick, args.output, args.json, args.checkpoint)
     except BenchError as e:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_write
 from .geometry.rotations import matrix_to_6d
 from .skeleton import NUM_JOINTS, REST_OFFSETS, fit_offsets, inverse_kinematics
 
@@ -101,7 +102,8 @@ class MotionClip:
             v = getattr(self, f.name)
             if f.name not in arrays and v is not None:
                 arrays[f.name] = np.asarray(v)
-        np.savez_compressed(path, **arrays)
+        with atomic_write(path) as f:
+            np.savez_compressed(f, **arrays)
 
     @classmethod
     def load(cls, path: str | Path) -> "MotionClip":

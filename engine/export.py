@@ -18,12 +18,14 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import struct
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import OutputPathError, check_output_path, write_bytes, write_text
 from .body import JOINT_RADII
 from .clip import MotionClip
 from .geometry.rotations import matrix_to_quat, rotation_between, sixd_to_matrix
@@ -99,13 +101,14 @@ def export_object_path(clip: MotionClip, path: str | Path) -> Path:
     header = ["frame", "time_s", "object", "x", "y", "z", "qw", "qx", "qy", "qz"]
     header += [f"anchor{k}_{axis}" for k in range(anchors.shape[2]) for axis in "xyz"]
     path = Path(path)
-    with path.open("w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(header)
-        for n in range(clip.num_frames):
-            for o, oid in enumerate(ids):
-                values = list(clip.obj_pose[n, o]) + list(anchors[n, o].reshape(-1))
-                writer.writerow([n, f"{n / clip.fps:.6f}", oid] + [f"{v:.6f}" for v in values])
+    text = io.StringIO(newline="")
+    writer = csv.writer(text)
+    writer.writerow(header)
+    for n in range(clip.num_frames):
+        for o, oid in enumerate(ids):
+            values = list(clip.obj_pose[n, o]) + list(anchors[n, o].reshape(-1))
+            writer.writerow([n, f"{n / clip.fps:.6f}", oid] + [f"{v:.6f}" for v in values])
+    write_text(path, text.getvalue())
     return path
 
 
@@ -259,7 +262,7 @@ def glb_bytes(document: dict, binary: bytes) -> bytes:
 def export_gltf(clip: MotionClip, path: str | Path) -> Path:
     """Write the animated scene as a binary glTF (.glb)."""
     path = Path(path)
-    path.write_bytes(glb_bytes(*gltf_document(clip)))
+    write_bytes(path, glb_bytes(*gltf_document(clip)))
     return path
 
 
@@ -271,6 +274,15 @@ def add_export_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bvh-dir", type=Path, help="write one BVH per person into this folder")
     parser.add_argument("--object-csv", type=Path, help="write the object path (CSV) here")
     parser.add_argument("--glb", type=Path, help="write an animated glTF binary (.glb) here")
+
+
+def check_export_paths(args: argparse.Namespace) -> None:
+    """Refuse, before any work, export paths no file can be written to (OutputPathError)."""
+    for name in ("npz", "object_csv", "glb"):
+        if getattr(args, name, None):
+            check_output_path(getattr(args, name))
+    if getattr(args, "bvh_dir", None) and Path(args.bvh_dir).exists() and not Path(args.bvh_dir).is_dir():
+        raise OutputPathError(f"{args.bvh_dir}: is not a folder (--bvh-dir takes a folder)")
 
 
 def export_requested(clip: MotionClip, args: argparse.Namespace) -> list[Path]:

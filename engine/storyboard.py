@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import write_text
 from .camera import StoryboardCamera
 from .objects import DEFAULT_SIZES, ObjectSpec
 from .skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
@@ -176,11 +177,8 @@ class Storyboard:
         return json.dumps(self.to_dict(), indent=1) + "\n"
 
     def save(self, path: str | Path) -> None:
-        """Write atomically: a crash mid-save never leaves a half-written storyboard."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(self.to_json())
-        tmp.replace(path)
+        """Written whole or not at all (engine.io.atomic)."""
+        write_text(path, self.to_json())
 
     @classmethod
     def from_dict(cls, d) -> "Storyboard":

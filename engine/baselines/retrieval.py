@@ -32,6 +32,7 @@ from typing import Generator, Sequence
 
 import numpy as np
 
+from ..atomic import atomic_write
 from ..clip import MotionClip
 from ..controls import Controls, build_controls
 from ..geometry.polylines import closest_on_polyline
@@ -136,7 +137,8 @@ class RetrievalIndex:
                 value = getattr(clip, name)
                 if value is not None:
                     arrays[f"clip{i}:{name}"] = np.asarray(value)
-        np.savez_compressed(path, **arrays)
+        with atomic_write(path) as f:
+            np.savez_compressed(f, **arrays)
 
     @classmethod
     def load(cls, path: str | Path) -> "RetrievalIndex":

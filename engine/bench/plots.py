@@ -2,6 +2,7 @@
 engine.bench.diagnostics computes. Each function takes plain lists and a path, returns the path."""
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import matplotlib
@@ -9,10 +10,14 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless backend)
 
+from ..atomic import write_bytes
+
 
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, dpi=110, format="png")
+    write_bytes(path, buffer.getvalue())
     plt.close(fig)
     return path
 

@@ -10,6 +10,7 @@ import math
 import os
 from pathlib import Path
 
+from ..atomic import write_text
 from .scores import COLUMNS
 from .targets import PAPER_TARGETS
 
@@ -214,10 +215,10 @@ def _diagnostics_section(diag: dict, relative_to: Path | None) -> str:
 
 def write(results: dict, command: str, markdown: Path | None, json_path: Path | None) -> None:
     if markdown is not None:
-        markdown.write_text(render(results, command, markdown.parent))
+        write_text(markdown, render(results, command, markdown.parent))
     if json_path is not None:
         data = {"command": command, "paper_targets": PAPER_TARGETS, **results}
-        json_path.write_text(json.dumps(_strict(data), indent=1, allow_nan=False))
+        write_text(json_path, json.dumps(_strict(data), indent=1, allow_nan=False))
 
 
 def _strict(value):

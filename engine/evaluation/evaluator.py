@@ -31,6 +31,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from ..atomic import atomic_write
 from ..clip import MotionClip
 from ..controls import Controls, build_controls
 from ..io.resample import resample_clip
@@ -119,8 +120,9 @@ def save_evaluator(evaluator: MotionEvaluator, path: str | Path) -> None:
     state = {k: v.detach().cpu().half() if v.is_floating_point() else v.detach().cpu()
              for k, v in evaluator.state_dict().items()}
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"format": FILE_FORMAT, "version": FILE_VERSION, "config": asdict(evaluator.config),
-                "card": evaluator.card, "state": state}, path)
+    with atomic_write(path) as f:
+        torch.save({"format": FILE_FORMAT, "version": FILE_VERSION, "config": asdict(evaluator.config),
+                    "card": evaluator.card, "state": state}, f)
 
 
 def load_evaluator(path: str | Path = DEFAULT_PATH, device: str | torch.device = "cpu") -> MotionEvaluator:

@@ -30,10 +30,18 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
+from ..atomic import write_text
 from ..dataset import DatasetConfig, StoryboardWindows, split_files
 from ..metrics import r_precision
-from .evaluator import (R_PRECISION_BATCH, R_PRECISION_TOP_K, STD_FLOOR, EvaluatorConfig, MotionEvaluator,
-                        embedding_fid, save_evaluator)
+from .evaluator import (
+    R_PRECISION_BATCH,
+    R_PRECISION_TOP_K,
+    STD_FLOOR,
+    EvaluatorConfig,
+    MotionEvaluator,
+    embedding_fid,
+    save_evaluator,
+)
 from .features import motion_features, story_features
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -245,7 +253,7 @@ def write_model_card(path: Path, card: dict, train_files: Sequence[Path], val_fi
         "the real distribution would reach with this many motions; train figures are measured on the "
         "first storyboard view of at most 2048 random training windows.", "",
         "## Files", "", "Train:", *[f"- {p}" for p in train_files], "", "Val:", *[f"- {p}" for p in val_files], ""]
-    path.with_suffix(".md").write_text("\n".join(lines))
+    write_text(path.with_suffix(".md"), "\n".join(lines))
 
 
 def train_evaluator(train_files: Sequence[Path], val_files: Sequence[Path], out: str | Path,

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import write_text
 from ..clip import MotionClip
 from ..geometry.rotations import matrix_to_euler, normalize, sixd_to_matrix
 from ..skeleton import CHILDREN, JOINT_NAMES, PARENTS
@@ -53,4 +54,4 @@ def clip_to_bvh(clip: MotionClip, human_index: int, order: str = EXPORT_ORDER) -
 
 def write_bvh(clip: MotionClip, human_index: int, path: str | Path, order: str = EXPORT_ORDER) -> None:
     """Write person `human_index` of `clip` to a BVH file."""
-    Path(path).write_text(format_bvh(clip_to_bvh(clip, human_index, order)))
+    write_text(path, format_bvh(clip_to_bvh(clip, human_index, order)))

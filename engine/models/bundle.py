@@ -20,6 +20,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from ..atomic import atomic_write
 from .alignment import LatentProjectionHead
 from .ctmc import PhasePlanner, PhasePlannerConfig
 from .encoders import EncoderConfig, SketchConditioner
@@ -116,10 +117,9 @@ class ModelBundle:
         weights = {name: {k: v.half() if v.is_floating_point() else v for k, v in m.state_dict().items()}
                    for name, m in self.parts.items()}
         meta = {**self.metadata, "trained": self.trained, "saved_at": time.strftime("%Y-%m-%d %H:%M:%S")}
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        torch.save({"format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "config": self.config.to_dict(),
-                    "metadata": meta, "weights": weights}, tmp)
-        tmp.replace(path)
+        with atomic_write(path) as f:
+            torch.save({"format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "config": self.config.to_dict(),
+                        "metadata": meta, "weights": weights}, f)
 
 
 def load_bundle(path: str | Path) -> ModelBundle:

@@ -3,11 +3,13 @@ frames, each labelled with its frame number) and an animated GIF. Used by `sketc
 """
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
 
+from ..atomic import write_bytes
 from ..clip import MotionClip
 from ..storyboard import Storyboard
 from .camera import OrbitCamera
@@ -61,7 +63,7 @@ def write_contact_sheet(clip: MotionClip, path: str | Path, count: int = 12, col
         box = draw.textbbox((x + 8, y + 6), label)
         draw.rectangle((box[0] - 4, box[1] - 3, box[2] + 4, box[3] + 3), fill=(40, 40, 40))
         draw.text((x + 8, y + 6), label, fill=(255, 255, 255))
-    sheet.save(path)
+    write_bytes(path, _encoded(sheet, format="PNG"))
     return frames
 
 
@@ -73,5 +75,12 @@ def write_gif(clip: MotionClip, path: str | Path, size: tuple[int, int] = (480, 
     frames = list(range(0, clip.num_frames, max(1, stride)))
     images = [Image.fromarray(a) for a in render_frames(clip, frames, size, storyboard, SceneOptions(ghosts=False))]
     duration = int(round(1000 * max(1, stride) / clip.fps))
-    images[0].save(path, save_all=True, append_images=images[1:], duration=duration, loop=0)
+    write_bytes(path, _encoded(images[0], format="GIF", save_all=True, append_images=images[1:], duration=duration,
+                                loop=0))
     return len(images)
+
+
+def _encoded(image: Image.Image, **options) -> bytes:
+    buffer = io.BytesIO()
+    image.save(buffer, **options)
+    return buffer.getvalue()

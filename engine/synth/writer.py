@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..atomic import write_text
 from .assemble import SynthConfig, synthesize
 from .scenarios import SCENARIOS
 
@@ -25,6 +26,6 @@ def write_dataset(out_dir: str | Path, clips: int, seed: int, scenarios: tuple[s
         synthesize(scenario, clip_seed, fps, seconds, config).save(out / name)
         entries.append({"file": name, "scenario": scenario, "seed": clip_seed})
     index = out / "index.json"
-    index.write_text(json.dumps({"seed": seed, "fps": fps, "seconds": seconds,
+    write_text(index, json.dumps({"seed": seed, "fps": fps, "seconds": seconds,
                                  "scenarios": list(scenarios), "clips": entries}, indent=1))
     return index

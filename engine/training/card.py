@@ -14,6 +14,7 @@ from pathlib import Path
 
 import torch
 
+from ..atomic import write_text
 from ..dataset import DatasetConfig, StoryboardWindows, split_files
 from ..models.bundle import ModelBundle, load_bundle
 from ..models.ctmc import contact_timing_error, phase_accuracy
@@ -74,7 +75,7 @@ def export_default(runs: str | Path, output: str | Path, data: list[str], real: 
             "stages": bundle.metadata.get("stages", []), "trained": bundle.trained,
             "metrics": bundle.metadata.get("metrics", {}), "held_out": figures,
             "held_out_files": {k: [p.name for p in v] for k, v in held.items()}}
-    output.with_suffix(".md").write_text(_card_markdown(card, bundle.metadata, command))
+    write_text(output.with_suffix(".md"), _card_markdown(card, bundle.metadata, command))
     return card
 
 

@@ -3,10 +3,11 @@ atomically every few minutes) and `final.pt` (the EMA weights of the stage's par
 stages and the bundle read)."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import torch
+
+from ..atomic import atomic_write
 
 
 class CheckpointError(ValueError):
@@ -14,11 +15,9 @@ class CheckpointError(ValueError):
 
 
 def save_atomic(obj: dict, path: str | Path) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.save(obj, tmp)
-    os.replace(tmp, path)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with atomic_write(path) as f:
+        torch.save(obj, f)
 
 
 def load(path: str | Path) -> dict:
