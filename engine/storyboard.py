@@ -26,6 +26,8 @@ HANDS = ("left", "right")
 AGENT_COLORS = ("#e4572e", "#2e86ab", "#76b041", "#9b5de5")
 SKETCH_LIMIT_M = 100.0   # |u|, |v| and the camera target's coordinates (the schema's "metres")
 MAX_SECONDS = 120.0      # the longest clip the generator is asked for
+MAX_FILE_CHARS = 16_000_000  # a storyboard file; the largest real ones are a few hundred kB
+MAX_INTEGER = 10 ** 9    # frames, spans and anchors are far below; a longer number is an error
 SPANS = ("trajectories", "object_paths", "contacts")   # the Storyboard lists with start and end frames
 
 
@@ -195,32 +197,40 @@ class Storyboard:
         for i, k in enumerate(d.get("keyposes", [])):
             mask = np.array([p is not None for p in k["points"]])
             pts = np.array([p if p is not None else (0.0, 0.0) for p in k["points"]], float)
-            sb.keyposes.append(Keypose(k["agent"], k["frame"], pts, mask))
+            sb.keyposes.append(Keypose(k["agent"], int(k["frame"]), pts, mask))
+        # The schema takes whole-number floats (5.0) as integers: they become ints here, once.
         for t in d.get("trajectories", []):
-            sb.trajectories.append(Trajectory(t["agent"], t["joint"], t["start"], t["end"],
+            sb.trajectories.append(Trajectory(t["agent"], t["joint"], int(t["start"]), int(t["end"]),
                                               np.array(t["points"], float).reshape(-1, 2)))
         for k in d.get("object_keys", []):
-            sb.object_keys.append(ObjectKey(k["object"], k["frame"], np.array(k["outline"], float).reshape(-1, 2)))
+            sb.object_keys.append(ObjectKey(k["object"], int(k["frame"]), np.array(k["outline"], float).reshape(-1, 2)))
         for p in d.get("object_paths", []):
-            sb.object_paths.append(ObjectPath(p["object"], p["start"], p["end"],
+            sb.object_paths.append(ObjectPath(p["object"], int(p["start"]), int(p["end"]),
                                               np.array(p["points"], float).reshape(-1, 2)))
         for c in d.get("contacts", []):
-            sb.contacts.append(Contact(c["agent"], c["hand"], c["start"], c["end"], c.get("object"),
-                                       c.get("anchor", 0), c.get("other_agent"), c.get("other_hand", "right")))
+            sb.contacts.append(Contact(c["agent"], c["hand"], int(c["start"]), int(c["end"]), c.get("object"),
+                                       int(c.get("anchor", 0)), c.get("other_agent"), c.get("other_hand", "right")))
         sb.validate()
         return sb
 
     @classmethod
     def from_json(cls, text: str) -> "Storyboard":
+        if len(text) > MAX_FILE_CHARS:
+            raise StoryboardError(f"the file is {len(text) / 1e6:.0f} MB; storyboards are at most "
+                                  f"{MAX_FILE_CHARS / 1e6:.0f} MB")
         try:
             d = json.loads(text)
         except json.JSONDecodeError as e:
             raise StoryboardError(f"malformed JSON at line {e.lineno}, column {e.colno}: {e.msg}") from None
+        except RecursionError:
+            raise StoryboardError("malformed JSON: nested too deeply") from None
         return cls.from_dict(d)
 
     @classmethod
     def load(cls, path: str | Path) -> "Storyboard":
         try:
+            if Path(path).stat().st_size > 4 * MAX_FILE_CHARS:   # UTF-8: at most 4 bytes a character
+                raise StoryboardError(f"cannot read {path}: larger than a storyboard can be")
             text = Path(path).read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as e:
             raise StoryboardError(f"cannot read {path}: {e}") from None
@@ -383,6 +393,8 @@ def _describe(e) -> str:
 def _check_finite(value, where: str) -> None:
     if isinstance(value, float) and not math.isfinite(value):
         raise StoryboardError(f"{where or 'storyboard'}: {value} is not a finite number")
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > MAX_INTEGER:
+        raise StoryboardError(f"{where or 'storyboard'}: a {len(str(abs(value)))}-digit number is out of range")
     if isinstance(value, dict):
         for k, v in value.items():
             _check_finite(v, f"{where}.{k}" if where else k)
