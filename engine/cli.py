@@ -45,8 +45,8 @@ def cmd_import_bvh(args) -> int:
     from .io.retarget import RetargetError, load_joint_map
     if len(args.files) > 2:
         raise UserError(f"import-bvh takes one or two BVH files (lead, follow), got {len(args.files)}")
-    if not args.fps > 0:
-        raise UserError(f"--fps must be positive, got {args.fps}")
+    if not 1.0 <= args.fps <= 240.0:
+        raise UserError(f"--fps must be between 1 and 240, got {args.fps:g}")
     check_output_path(args.output)
     try:
         clip, report = import_bvh(args.files, ImportConfig(fps=args.fps), load_joint_map(args.map))

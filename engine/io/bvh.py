@@ -25,6 +25,10 @@ _FRAMES = re.compile(r"^Frames\s*:\s*(\S+)$", re.IGNORECASE)
 _FRAME_TIME = re.compile(r"^Frame\s+Time\s*:\s*(\S+)$", re.IGNORECASE)
 
 
+MAX_FRAME_TIME_S = 1.0      # 1 frame a second; capture runs at 24-480 fps
+MAX_TAKE_S = 3600.0         # an hour of motion: bounds the memory an import can ask for
+
+
 class BvhError(ValueError):
     """A malformed BVH file; the message is one line and names the line at fault."""
 
@@ -280,8 +284,12 @@ def _motion_header(lines: list[str], i: int) -> tuple[int, float, int]:
         frame_time = float(value)
     except ValueError:
         frame_time = -1.0
-    if not frame_time > 0:
-        raise BvhError(f"line {i}: frame time must be a positive number, found '{value}'")
+    if not 0 < frame_time <= MAX_FRAME_TIME_S:
+        raise BvhError(f"line {i}: frame time must be a positive number of seconds, at most "
+                       f"{MAX_FRAME_TIME_S:g}, found '{value}'")
+    if frames * frame_time > MAX_TAKE_S:
+        raise BvhError(f"line {i}: {frames} frames of {frame_time:g} s is {frames * frame_time / 60:.0f} min; "
+                       f"takes are at most {MAX_TAKE_S / 60:.0f} min")
     return frames, frame_time, i
 
 
