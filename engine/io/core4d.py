@@ -4,8 +4,8 @@
     <root>/human_object_motions/<date>/<sequence>/object_poses_<object name>.npy   (N, 4, 4)
     <root>/object_models/<category>/<object name>_m.obj                           metres
 
-A person file is np.savez of one dict (key "arr_0"; reading it needs pickle, so open only copies
-of the dataset you trust) holding SMPL-X parameters and "joints" (N, 127, 3): the first 22 are
+A person file is np.savez of one dict (key "arr_0", a pickle: read by engine.io.safe_pickle, which
+rebuilds arrays and plain containers only and runs no code) holding SMPL-X parameters and "joints" (N, 127, 3): the first 22 are
 the SMPL body joints in our order. An object pose is the 4x4 world transform of its canonical
 mesh. We use joint positions (rotations re-solved on our skeleton) and object poses; the mesh
 gives the object's size and its category folder its type.
@@ -16,6 +16,8 @@ is found from the data (the axis from pelvis to head) and turned into +Y with a 
 """
 from __future__ import annotations
 
+import pickle
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +28,7 @@ from ..geometry.rotations import matrix_to_quat, rotation_between
 from ..skeleton import JOINT_INDEX, NUM_JOINTS
 from .importer import ImportConfig, ImportReport, finish_clip, place_people
 from .retarget import RetargetError
+from .safe_pickle import load_pickled_entry
 
 
 @dataclass
@@ -53,10 +56,12 @@ def _person_joints(path: Path) -> np.ndarray:
     """(N, 22, 3) body joints from one CORE4D person file, in the file's world frame."""
     if not path.is_file():
         raise FileNotFoundError(f"{path}: missing CORE4D person file")
-    with np.load(path, allow_pickle=True) as z:
-        if "arr_0" not in z.files:
-            raise RetargetError(f"{path}: expected an 'arr_0' entry holding the pose dict")
-        params = z["arr_0"].item()
+    try:
+        params = load_pickled_entry(path, "arr_0")
+    except KeyError:
+        raise RetargetError(f"{path}: expected an 'arr_0' entry holding the pose dict") from None
+    except (pickle.UnpicklingError, zipfile.BadZipFile, ValueError, EOFError) as e:
+        raise RetargetError(f"{path}: not a CORE4D person file ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
     joints = np.asarray(params.get("joints") if isinstance(params, dict) else None)
     if joints.ndim != 3 or joints.shape[1] < NUM_JOINTS or joints.shape[2] != 3 or joints.shape[0] < 2:
         raise RetargetError(f"{path}: expected 'joints' of shape (N >= 2, >= 22, 3), got {joints.shape}")

@@ -12,6 +12,7 @@ until trained weights land.
 """
 from __future__ import annotations
 
+import hashlib
 import dataclasses
 import time
 from dataclasses import dataclass, field
@@ -119,7 +120,26 @@ class ModelBundle:
         meta = {**self.metadata, "trained": self.trained, "saved_at": time.strftime("%Y-%m-%d %H:%M:%S")}
         with atomic_write(path) as f:
             torch.save({"format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "config": self.config.to_dict(),
-                        "metadata": meta, "weights": weights}, f)
+                        "metadata": meta, "weights": weights, "weights_sha256": weights_digest(weights)}, f)
+
+
+def weights_digest(weights: dict[str, dict[str, torch.Tensor]]) -> str:
+    """SHA-256 of every tensor's name, dtype, shape and bytes, in a fixed order: a flipped byte
+    in a weight changes it (a damaged file loaded silently and moved the motion by 0.5 m)."""
+    digest = hashlib.sha256()
+    for name in sorted(weights):
+        for key in sorted(weights[name]):
+            tensor = weights[name][key]
+            if not isinstance(tensor, torch.Tensor):
+                raise BundleError(f"weight {name}/{key} is not a tensor")
+            tensor = tensor.detach().cpu().contiguous()
+            digest.update(f"{name}/{key}/{tensor.dtype}/{tuple(tensor.shape)}".encode())
+            digest.update(tensor.reshape(-1).view(torch.uint8).numpy().tobytes())
+    return digest.hexdigest()
+
+
+def _first_line(error: Exception) -> str:
+    return (str(error).splitlines() or [type(error).__name__])[0][:160]
 
 
 def load_bundle(path: str | Path) -> ModelBundle:
@@ -130,28 +150,42 @@ def load_bundle(path: str | Path) -> ModelBundle:
     except FileNotFoundError:
         raise BundleError(f"{path}: no such model bundle") from None
     except Exception as e:  # zip, pickle and torch errors all mean "not a bundle we can read"
-        raise BundleError(f"{path}: not a readable model bundle ({type(e).__name__}: {str(e).splitlines()[0][:120]})") from None
+        raise BundleError(f"{path}: not a readable model bundle ({type(e).__name__}: {_first_line(e)})") from None
     if not isinstance(data, dict) or data.get("format") != BUNDLE_FORMAT:
         raise BundleError(f"{path}: not a Sketch2Colab model bundle")
-    if int(data.get("version", -1)) > BUNDLE_VERSION:
-        raise BundleError(f"{path}: bundle version {data.get('version')} is newer than this program ({BUNDLE_VERSION})")
+    version = data.get("version")
+    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= BUNDLE_VERSION:
+        raise BundleError(f"{path}: bundle version {version!r} is not one this program reads (1 to {BUNDLE_VERSION})")
+    weights, meta = data.get("weights"), data.get("metadata", {})
+    if not isinstance(weights, dict) or not isinstance(meta, dict) or not isinstance(data.get("config"), dict):
+        raise BundleError(f"{path}: damaged model bundle (its weights, metadata or config are not tables)")
+    expected = data.get("weights_sha256")
+    try:
+        intact = expected is None or weights_digest(weights) == expected
+    except Exception as e:  # noqa: BLE001  any malformed table is damage
+        raise BundleError(f"{path}: damaged model bundle ({_first_line(e)})") from None
+    if not intact:
+        raise BundleError(f"{path}: the weights do not match their checksum: the file is damaged")
     try:
         cfg = ModelConfig.from_dict(data["config"])
         parts = build_parts(cfg)
     except Exception as e:
-        raise BundleError(f"{path}: bundle config does not fit these models ({e})") from None
-    for name, state in data.get("weights", {}).items():
+        raise BundleError(f"{path}: bundle config does not fit these models ({_first_line(e)})") from None
+    if meta.get("trained") and set(parts) - set(weights):
+        missing = ", ".join(sorted(set(parts) - set(weights)))
+        raise BundleError(f"{path}: marked trained but has no weights for {missing}")
+    for name, state in weights.items():
         if name not in parts:
             raise BundleError(f"{path}: unknown part {name!r} in bundle")
         try:
             target = parts[name].state_dict()
             parts[name].load_state_dict({k: v.to(target[k].dtype) if k in target else v for k, v in state.items()})
         except Exception as e:
-            raise BundleError(f"{path}: weights of part {name!r} do not fit ({str(e).splitlines()[0][:160]})") from None
+            raise BundleError(f"{path}: weights of part {name!r} do not fit ({_first_line(e)})") from None
         bad = [k for k, v in state.items() if v.is_floating_point() and not torch.isfinite(v).all()]
         if bad:
             raise BundleError(f"{path}: part {name!r} has non-finite weights in {bad[0]}")
-    meta = dict(data.get("metadata", {}))
+    meta = dict(meta)
     return ModelBundle(cfg, parts, trained=bool(meta.get("trained", False)), metadata=meta).eval()
 
 
