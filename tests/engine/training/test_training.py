@@ -8,7 +8,7 @@ import pytest
 import torch
 import torch.multiprocessing as mp
 
-from engine.models.bundle import BundleError, ModelConfig, load_bundle, load_default, untrained_bundle
+from engine.models.bundle import BundleError, ModelConfig, load_bundle, load_default, untrained_bundle, weights_digest
 from engine.models.unet import UNetConfig
 from engine.models.vqvae import VQVAEConfig
 from engine.training import checkpoint
@@ -133,6 +133,10 @@ def test_bundle_fallback_roundtrip_and_errors(tmp_path):
         load_bundle(tmp_path / "other.pt")
     data = torch.load(tmp_path / "b.pt")
     data["weights"]["student"]["backbone.output.weight"] = torch.zeros(3, 3).half()
+    torch.save(data, tmp_path / "wrong.pt")
+    with pytest.raises(BundleError, match="do not match their checksum"):
+        load_bundle(tmp_path / "wrong.pt")
+    data["weights_sha256"] = weights_digest(data["weights"])           # consistent, but the wrong shape
     torch.save(data, tmp_path / "wrong.pt")
     with pytest.raises(BundleError, match="weights of part 'student' do not fit"):
         load_bundle(tmp_path / "wrong.pt")
