@@ -27,14 +27,14 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from engine.clip import MotionClip
+from engine.clip import ClipError, MotionClip
 from engine.cpu import usable_cores
 from engine.export import export_gltf, export_npz, export_object_path
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard, StoryboardError
 
 from . import commands as cmd
-from .autosave import Autosaver, find_recovery
+from .autosave import Autosaver, find_recoveries
 from .canvas import SketchCanvas
 from .document import TOOLS, Document, new_storyboard
 from .examples import list_examples
@@ -91,14 +91,14 @@ class VerticalScroll(QScrollArea):
 class MainWindow(QMainWindow):
     def __init__(self, data_dir: Path, settings: QSettings | None = None,
                  generate: Callable[[Storyboard, GenerationSettings], StepStream] = start_generation,
-                 autosave_ms: int = 30_000):
+                 autosave_delay_ms: int = 400):
         super().__init__()
         self.doc = Document()
         self.settings = settings or QSettings()
         self.playback = Playback(self.doc, self)
         self.session = GenerationSession(self.doc, generate, self)
         self.view_options = ViewOptionsModel(self.settings, self)
-        self.autosaver = Autosaver(self.doc, data_dir, autosave_ms, self)
+        self.autosaver = Autosaver(self.doc, data_dir, autosave_delay_ms, self)
 
         self.canvas = SketchCanvas(self.doc)
         self.setCentralWidget(self.canvas)
@@ -605,24 +605,30 @@ class MainWindow(QMainWindow):
 
     # ---- crash recovery ------------------------------------------------------------------------
     def offer_recovery(self) -> bool:
-        """At start: if the last session left unsaved work behind, offer to reopen it."""
-        found = find_recovery(self.autosaver.directory)
-        if found is None:
+        """At start: if a window that is gone left unsaved work behind, offer to reopen it (the
+        newest; a live window's work is its own). Damaged work is set aside and reported."""
+        found = find_recoveries(self.autosaver.directory)
+        if not found:
             return False
-        name = found.source.name if found.source else "an untitled storyboard"
+        recovery = found[0]
+        name = recovery.source.name if recovery.source else "an untitled storyboard"
         answer = QMessageBox.question(self, APP_NAME,
-                                      f"The last session ended with unsaved changes to {name}. Recover them?",
+                                      f"A session ended with unsaved changes to {name}. Recover them?",
                                       QMessageBox.Yes | QMessageBox.No, QMessageBox.Yes)
         if answer != QMessageBox.Yes:
-            self.autosaver.clear()
+            recovery.discard()
             return False
         try:
-            storyboard = found.load()
-        except StoryboardError as e:
-            self.error(f"The recovery file cannot be read: {e}")
-            self.autosaver.clear()
+            storyboard, take = recovery.load()
+        except (StoryboardError, ClipError, OSError) as e:
+            kept = recovery.set_aside()
+            self.error(f"The unsaved work could not be read ({str(e).splitlines()[0]}); it is kept in {kept}.")
             return False
-        self.doc.replace_storyboard(storyboard, found.source, dirty=True)
+        self.doc.replace_storyboard(storyboard, recovery.source, dirty=True)
+        if take is not None:
+            self.doc.set_result([take], take.phase)
+        recovery.discard()
+        self.autosaver.save_now()          # the recovered work is this window's now
         self.statusBar().showMessage("Recovered unsaved work; save it to keep it.", 8000)
         return True
 
@@ -696,4 +702,3 @@ class MainWindow(QMainWindow):
         self.playback.pause()
         self.session.shutdown()
         self.autosaver.stop()
-        self.autosaver.clear()

@@ -58,10 +58,10 @@ def make_window(qtbot, tmp_path, dialogs):
     from app.mainwindow import MainWindow
     windows = []
 
-    def make(generate=None, autosave_ms=30_000):
+    def make(generate=None, autosave_delay_ms=400):
         settings = QSettings(str(tmp_path / "settings.ini"), QSettings.IniFormat)
         window = MainWindow(data_dir=tmp_path / "data", settings=settings, generate=generate or FakeSampler(),
-                            autosave_ms=autosave_ms)
+                            autosave_delay_ms=autosave_delay_ms)
         qtbot.addWidget(window)
         window.show()
         windows.append(window)

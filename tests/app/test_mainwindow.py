@@ -5,6 +5,7 @@ import torch  # noqa: F401  as main() does: loaded before the window, so no gene
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer
 
 from app import commands as cmd
+from app.autosave import Recovery
 from app.main import NO_DISPLAY, main
 from engine.sampling.config import STEADY_GUIDANCE_RATE
 
@@ -157,22 +158,85 @@ def test_sampler_error_becomes_a_dialog(qtbot, make_window, dialogs):
     assert window.act_generate.isEnabled()
 
 
-def test_autosave_and_recovery(qtbot, make_window, tmp_path, dialogs):
-    window = make_window(autosave_ms=50)
-    load_sample(window)
-    window.doc.undo_stack.push(cmd.DeleteKeypose(window.doc, "A", 0))
-    recovery = tmp_path / "data" / "recovery.storyboard.json"
-    qtbot.waitUntil(recovery.exists, timeout=3000)
-    edited = window.doc.storyboard.to_json()
-    window.autosaver.stop()   # a crash: nothing cleans up
+KILLED_WINDOW = """
+import os, sys, time
+os.environ["QT_QPA_PLATFORM"] = "offscreen"
+from pathlib import Path
+from PySide6.QtCore import QSettings
+from PySide6.QtWidgets import QApplication
+from app import commands as cmd
+from app.mainwindow import MainWindow
+from tests.app.fakes import sample_storyboard
+app = QApplication([])
+data = Path(sys.argv[1])
+window = MainWindow(data, QSettings(str(data / "settings.ini"), QSettings.IniFormat))
+window.doc.replace_storyboard(sample_storyboard(), None)
+window.doc.undo_stack.push(cmd.DeleteKeypose(window.doc, "A", 0))
+deadline = time.monotonic() + 1.0          # edits keep coming: the last one is 0.1 s before the kill
+while time.monotonic() < deadline:
+    app.processEvents()
+    time.sleep(0.01)
+print(window.doc.storyboard.to_json().replace("\\n", " "), flush=True)
+while True:
+    app.processEvents()
+    time.sleep(0.01)
+"""
 
+
+def test_work_survives_a_kill_while_editing(qtbot, make_window, tmp_path, dialogs):
+    """A window killed with SIGKILL a second after its last edit: a new window offers that edit."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    data = tmp_path / "data"
+    child = subprocess.Popen([sys.executable, "-c", KILLED_WINDOW, str(data)], stdout=subprocess.PIPE, text=True,
+                             env={**os.environ, "PYTHONPATH": os.getcwd()})
+    edited = child.stdout.readline().strip()
+    os.kill(child.pid, signal.SIGKILL)
+    child.wait()
     fresh = make_window()
     dialogs.answer = dialogs.answer.Yes
     assert fresh.offer_recovery()
-    assert fresh.doc.storyboard.to_json() == edited
+    assert fresh.doc.storyboard.to_json().replace("\n", " ").strip() == edited
     assert fresh.doc.dirty and fresh.isWindowModified()
     assert fresh.save_to(tmp_path / "rescued.json")
-    assert not recovery.exists()
+    assert fresh.offer_recovery() is False                        # recovered once, then gone
+
+
+def test_a_second_window_leaves_a_live_windows_work_alone(qtbot, make_window, tmp_path, dialogs):
+    first = make_window(autosave_delay_ms=10)
+    load_sample(first)
+    first.doc.undo_stack.push(cmd.DeleteKeypose(first.doc, "A", 0))
+    qtbot.waitUntil(lambda: (first.autosaver.session / "recovery.storyboard.json").exists(), timeout=3000)
+    second = make_window()
+    assert not second.offer_recovery() and dialogs.questions == []
+    assert (first.autosaver.session / "recovery.storyboard.json").exists()
+
+
+def test_a_take_is_autosaved_and_recovered_with_its_storyboard(qtbot, make_window, tmp_path, dialogs):
+    window = make_window(autosave_delay_ms=10)
+    load_sample(window)
+    window.doc.undo_stack.push(cmd.DeleteKeypose(window.doc, "A", 0))
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
+        window.generate()
+    take = window.autosaver.session / "recovery.take.npz"
+    qtbot.waitUntil(take.exists, timeout=3000)
+    window.autosaver.flush()
+    storyboard, clip = Recovery(window.autosaver.session, None).load()
+    assert storyboard.to_json() == window.doc.storyboard.to_json()
+    assert clip is not None and clip.num_frames == window.doc.clip.num_frames
+
+
+def test_unreadable_work_is_set_aside_and_reported(qtbot, make_window, tmp_path, dialogs):
+    folder = tmp_path / "data" / "sessions" / "12345-1"
+    folder.mkdir(parents=True)
+    (folder / "recovery.storyboard.json").write_text("{ not json")
+    window = make_window()
+    dialogs.answer = dialogs.answer.Yes
+    assert not window.offer_recovery()
+    assert len(dialogs.errors) == 1 and "could not be read" in dialogs.errors[0]
+    assert not folder.exists() and folder.with_name("12345-1.unreadable").exists()
 
 
 def test_no_display_message(monkeypatch, capsys):
