@@ -32,7 +32,11 @@ def cmd_sketchify(args) -> int:
     if args.keyframes < 0:
         raise UserError(f"--keyframes must be >= 0, got {args.keyframes}")
     check_output_path(args.output)
-    sb = sketchify(MotionClip.load(args.clip), args.keyframes, args.noise, args.seed)
+    clip = MotionClip.load(args.clip)
+    if clip.num_frames < 2:
+        raise UserError(f"{args.clip}: {clip.num_frames} frame{'s' * (clip.num_frames != 1)}; a storyboard "
+                        f"needs a clip of at least 2")
+    sb = sketchify(clip, args.keyframes, args.noise, args.seed)
     sb.save(args.output)
     print(f"{args.output}: {len(sb.keyframes())} keyframes, {len(sb.keyposes)} keyposes, "
           f"{len(sb.trajectories)} trajectories, {len(sb.contacts)} contacts")

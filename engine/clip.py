@@ -36,6 +36,8 @@ class MotionClip:
     scenario: str = ""
 
     def __post_init__(self):
+        _check(isinstance(self.fps, (int, float, np.floating, np.integer)) and 0 < float(self.fps) <= 1000,
+               f"fps must be a number in (0, 1000], got {self.fps}")
         self.joints = np.asarray(self.joints, np.float32)
         self.rot6d = np.asarray(self.rot6d, np.float32)
         n, h = self.joints.shape[:2]
@@ -114,13 +116,16 @@ class MotionClip:
             raise ClipError(f"{path}: not a readable motion clip NPZ ({e})") from None
         for key in ("fps", "joints", "rot6d"):
             _check(key in data, f"{path}: missing required array '{key}'")
-        version = int(data.pop("format_version", FORMAT_VERSION))
-        _check(version <= FORMAT_VERSION, f"{path}: clip format version {version} is newer than this program")
-        known = {f.name for f in fields(cls)}
-        kw = {k: v for k, v in data.items() if k in known}
-        kw["fps"] = float(kw["fps"])
-        kw["scenario"] = str(kw.get("scenario", ""))
-        return cls(**kw)
+        try:
+            version = int(data.pop("format_version", FORMAT_VERSION))
+            _check(version <= FORMAT_VERSION, f"clip format version {version} is newer than this program")
+            known = {f.name for f in fields(cls)}
+            kw = {k: v for k, v in data.items() if k in known}
+            kw["fps"] = float(kw["fps"])
+            kw["scenario"] = str(kw.get("scenario", ""))
+            return cls(**kw)
+        except (ClipError, TypeError, ValueError) as e:   # a wrong shape, type or value in a readable file
+            raise ClipError(f"{path}: {str(e).splitlines()[0] if str(e) else type(e).__name__}") from None
 
 
 def _check(ok: bool, message: str) -> None:

@@ -7,6 +7,7 @@ import pytest
 
 from engine.camera import StoryboardCamera
 from engine.cli import main
+from engine.clip import ClipError
 
 EXAMPLE = "resources/examples/box_handoff.json"
 
@@ -104,3 +105,23 @@ def test_nan_anywhere_is_a_clear_error(tmp_path, capsys, where):
     code, err, _ = generate(tmp_path, storyboard(poison), capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "nan" in err.lower()
+
+
+def test_sketchify_refuses_clips_it_cannot_draw_in_one_line(tmp_path, capsys):
+    from dataclasses import replace
+
+    from engine.synth import synthesize
+    clip = synthesize("handoff", 1)
+    cases = {"one.npz": clip.slice(0, 1), "zero.npz": clip.slice(0, 0)}
+    for name, c in cases.items():
+        c.save(tmp_path / name)
+    arrays = dict(np.load(tmp_path / "one.npz"))
+    arrays["fps"] = np.float32("nan")
+    np.savez(tmp_path / "nanfps.npz", **arrays)
+    for name in ("one.npz", "zero.npz", "nanfps.npz"):
+        assert main(["sketchify", str(tmp_path / name), "-o", str(tmp_path / "s.json")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and name in err[0]
+    assert not (tmp_path / "s.json").exists()
+    with pytest.raises(ClipError):
+        replace(clip, fps=float("inf"))
