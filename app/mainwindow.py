@@ -12,20 +12,8 @@ from pathlib import Path
 
 from PySide6.QtCore import QEvent, QSettings, Qt
 from PySide6.QtGui import QAction, QActionGroup, QKeySequence
-from PySide6.QtWidgets import (
-    QDockWidget,
-    QFileDialog,
-    QFrame,
-    QHBoxLayout,
-    QLabel,
-    QMainWindow,
-    QMessageBox,
-    QProgressBar,
-    QScrollArea,
-    QSizePolicy,
-    QVBoxLayout,
-    QWidget,
-)
+from PySide6.QtWidgets import (QDockWidget, QFileDialog, QFrame, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
+                               QProgressBar, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
 from engine.clip import ClipError, MotionClip
 from engine.cpu import usable_cores
@@ -114,6 +102,7 @@ class MainWindow(QMainWindow):
         self._build_status()
         self._connect()
         self._restore_layout()
+        self.setAcceptDrops(True)
         self._update_title()
 
     # ---- construction ------------------------------------------------------------------------
@@ -563,10 +552,11 @@ class MainWindow(QMainWindow):
             write_bvh(clip, h, written[-1])
         return written
 
-    def import_bvh(self) -> None:
+    def import_bvh(self, paths: list[str] | None = None) -> None:
         from engine.io import import_bvh
-        paths, _ = QFileDialog.getOpenFileNames(self, "Import Reference Motion (one BVH per person)",
-                                                self._last_dir(), "BVH (*.bvh)")
+        if paths is None:
+            paths, _ = QFileDialog.getOpenFileNames(self, "Import Reference Motion (one BVH per person)",
+                                                    self._last_dir(), "BVH (*.bvh)")
         if not paths:
             return
         try:
@@ -602,6 +592,22 @@ class MainWindow(QMainWindow):
                 self.viewport.grab_png(path)
             except OSError as e:
                 self.error(f"Cannot write {Path(path).name}: {e}")
+
+    # ---- drag and drop: a storyboard opens, BVH files become the reference ---------------------
+    def dragEnterEvent(self, event) -> None:
+        if event.mimeData().hasUrls():
+            event.acceptProposedAction()
+
+    def dropEvent(self, event) -> None:
+        paths = [u.toLocalFile() for u in event.mimeData().urls() if u.isLocalFile()]
+        event.acceptProposedAction()
+        bvh = [p for p in paths if p.lower().endswith(".bvh")]
+        if bvh and len(bvh) == len(paths):
+            self.import_bvh(bvh[:2])
+        elif len(paths) == 1:
+            self.open_file(paths[0])       # any other file is read as a storyboard: a bad one is a dialog
+        else:
+            self.error("Drop one storyboard (.json), or one or two BVH files (one per person).")
 
     # ---- crash recovery ------------------------------------------------------------------------
     def offer_recovery(self) -> bool:

@@ -48,16 +48,8 @@ from PySide6.QtWidgets import QWidget
 from engine.atomic import write_bytes
 from engine.clip import MotionClip
 from engine.objects import ObjectSpec
-from engine.render import (
-    OrbitCamera,
-    RenderConfig,
-    RenderUnavailableError,
-    SceneOptions,
-    SceneRenderer,
-    is_software,
-    scene_from_clip,
-    shared_context,
-)
+from engine.render import (OrbitCamera, RenderConfig, RenderUnavailableError, SceneOptions, SceneRenderer, is_software,
+                           scene_from_clip, shared_context)
 from engine.render.example import warm_up_scenes
 from engine.storyboard import Storyboard
 

@@ -22,18 +22,8 @@ from .clip import MotionClip
 from .objects import DEFAULT_SIZES, ObjectSpec, local_to_world, world_to_local
 from .skeleton import HANDS as HAND_JOINTS
 from .skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
-from .storyboard import (
-    AGENT_COLORS,
-    HANDS,
-    Agent,
-    Contact,
-    Keypose,
-    ObjectKey,
-    ObjectPath,
-    SceneObject,
-    Storyboard,
-    Trajectory,
-)
+from .storyboard import (AGENT_COLORS, HANDS, Agent, Contact, Keypose, ObjectKey, ObjectPath,
+                         SceneObject, Storyboard, Trajectory)
 
 PELVIS = JOINT_INDEX["pelvis"]
 

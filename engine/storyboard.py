@@ -378,7 +378,7 @@ def _describe(e) -> str:
         extra = sorted(set(inst) - set(e.schema.get("properties", {})))
         return f"{where}: unknown field {extra[0]!r}"
     if e.validator == "const" and where == "version":
-        return f"version: this program reads storyboard version {VERSION}, the file is version {inst!r}"
+        return f"version: this program reads storyboard version {VERSION}, the file is version {repr(inst)[:40]}"
     if e.validator == "oneOf" and where.startswith("keyposes"):
         if isinstance(inst, list) and e.context:   # a point, but a bad one: say what is wrong with it
             return _describe(min(e.context, key=lambda sub: sub.validator == "type"))

@@ -21,20 +21,8 @@ from ..baselines.retrieval import default_index
 from . import diagnostics, plots
 from .animator import ANIMATOR_TARGETS
 from .protocol import REPO_ROOT, ProtocolConfig, build_protocols
-from .runner import (
-    ABLATIONS,
-    ALL_METHODS,
-    OURS,
-    RETRIEV_ADAPT,
-    STEADY,
-    TEACHER_DDIM,
-    TEACHER_DDIM_FINISHED,
-    TEACHER_DDPM,
-    TEACHER_DDPM_FINISHED,
-    RunnerConfig,
-    generate,
-    run_protocol,
-)
+from .runner import (ABLATIONS, ALL_METHODS, OURS, RETRIEV_ADAPT, STEADY, TEACHER_DDIM, TEACHER_DDIM_FINISHED,
+                     TEACHER_DDPM, TEACHER_DDPM_FINISHED, RunnerConfig, generate, run_protocol)
 from .scores import by_key, by_method, paired
 from .speed import SpeedConfig, speed_table
 from .targets import check_targets

@@ -33,15 +33,8 @@ from torch.utils.data import DataLoader
 from ..atomic import write_text
 from ..dataset import DatasetConfig, StoryboardWindows, split_files
 from ..metrics import r_precision
-from .evaluator import (
-    R_PRECISION_BATCH,
-    R_PRECISION_TOP_K,
-    STD_FLOOR,
-    EvaluatorConfig,
-    MotionEvaluator,
-    embedding_fid,
-    save_evaluator,
-)
+from .evaluator import (R_PRECISION_BATCH, R_PRECISION_TOP_K, STD_FLOOR, EvaluatorConfig, MotionEvaluator,
+                        embedding_fid, save_evaluator)
 from .features import motion_features, story_features
 
 REPO_ROOT = Path(__file__).resolve().parents[2]

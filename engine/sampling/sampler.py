@@ -39,16 +39,8 @@ from .energies import EnergyContext
 from .events import GenerationResult, StepEvent
 from .guidance import EnergyGuidance
 from .output import LatentDecoder, Output
-from .solvers import (
-    ddim_step,
-    ddim_times,
-    ddpm_step,
-    ddpm_times,
-    flow_clean_estimate,
-    flow_renoise,
-    flow_times,
-    heun_step,
-)
+from .solvers import (ddim_step, ddim_times, ddpm_step, ddpm_times, flow_clean_estimate, flow_renoise, flow_times,
+                      heun_step)
 
 
 class Bundle(Protocol):

@@ -13,16 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..skeleton import (
-    FEET,
-    HANDS,
-    JOINT_INDEX,
-    JOINT_NAMES,
-    NUM_JOINTS,
-    REST_OFFSETS,
-    forward_kinematics,
-    inverse_kinematics,
-)
+from ..skeleton import (FEET, HANDS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, REST_OFFSETS, forward_kinematics,
+                        inverse_kinematics)
 from .gait import FOOT_HEIGHT, Footwork
 from .reach import pitch_matrix, to_local, two_bone_ik, yaw_matrix
 from .trajectory import smoothstep

@@ -9,7 +9,6 @@ import numpy as np
 from ..objects import DEFAULT_SIZES, GRIP_SIGNS, NUM_ANCHORS, OBJECT_TYPES, ObjectSpec, local_to_world
 from .reach import UP
 
-
 def random_object(rng: np.random.Generator, types: tuple[str, ...] = OBJECT_TYPES,
                   size_range: tuple[float, float] = (0.8, 1.25)) -> ObjectSpec:
     kind = str(rng.choice(types))

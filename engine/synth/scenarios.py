@@ -26,7 +26,7 @@ from ..objects import ObjectSpec
 from .body import Body, make_body
 from .props import assign_hands, end_grips, pose_array, random_object, side_grips, world_anchors
 from .reach import forward_of, heading_of, wrap_angle, yaw_matrix
-from .trajectory import arc_control, progress, smoothstep, travel, window_weight
+from .trajectory import (arc_control, progress, smoothstep, travel, window_weight)
 
 SCENARIOS = ("carry_together", "let_go", "handoff", "lift_adjust", "handshake")
 

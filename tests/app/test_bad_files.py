@@ -16,7 +16,7 @@ def mutated_files(tmp_path, count: int = 40) -> list:
         doc = copy.deepcopy(EXAMPLES[n % len(EXAMPLES)])
         for _ in range(rng.randint(1, 3)):
             leaves = list(_leaves(doc))
-            doc = _set(doc, rng.choice(leaves), rng.choice(JUNK))
+            doc = _set(doc, rng.choice(leaves), copy.deepcopy(rng.choice(JUNK)))
         path = tmp_path / f"bad{n}.json"
         try:
             path.write_text(json.dumps(doc))
@@ -64,3 +64,33 @@ def test_a_bad_file_on_the_command_line_is_a_dialog_not_a_crash(tmp_path):
     app.kill()
     _, err = app.communicate()
     assert alive and "Traceback" not in err, err[-2000:]
+
+
+def drop(qtbot, window, paths):
+    from PySide6.QtCore import QMimeData, QPointF, Qt, QUrl
+    from PySide6.QtGui import QDropEvent
+    from PySide6.QtWidgets import QApplication
+    data = QMimeData()
+    data.setUrls([QUrl.fromLocalFile(str(p)) for p in paths])
+    event = QDropEvent(QPointF(window.width() / 2, window.height() / 2), Qt.CopyAction, data, Qt.LeftButton,
+                       Qt.NoModifier)
+    QApplication.sendEvent(window, event)         # through Qt's event dispatch, as a real drop
+
+
+def test_dropped_files_open_or_say_why(qtbot, window, tmp_path, dialogs):
+    files = mutated_files(tmp_path, count=8)
+    for path in files:
+        before = len(dialogs.errors)
+        drop(qtbot, window, [path])
+        assert len(dialogs.errors) in (before, before + 1)
+        window.doc.undo_stack.clear()
+        window.doc.mark_saved(path)
+    (tmp_path / "bad.bvh").write_text("HIERARCHY\nROOT nothing")
+    drop(qtbot, window, [tmp_path / "bad.bvh"])
+    assert "bad.bvh" in dialogs.errors[-1] and "\n" not in dialogs.errors[-1]
+    drop(qtbot, window, files[:3])
+    assert "Drop one storyboard" in dialogs.errors[-1]
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps(EXAMPLES[0]))
+    drop(qtbot, window, [good])
+    assert window.doc.path == good

@@ -10,14 +10,8 @@ import numpy as np
 import pytest
 
 from engine.clip import MotionClip
-from engine.export import (
-    add_export_arguments,
-    export_bvh_dir,
-    export_gltf,
-    export_npz,
-    export_object_path,
-    export_requested,
-)
+from engine.export import (add_export_arguments, export_bvh_dir, export_gltf, export_npz, export_object_path,
+                           export_requested)
 from engine.geometry.rotations import axis_angle_to_matrix, matrix_to_6d, quat_to_matrix
 from engine.io.bvh import read_bvh
 from engine.objects import ObjectSpec, local_to_world

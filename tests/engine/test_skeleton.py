@@ -5,20 +5,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from engine.geometry import rotations as rot
-from engine.skeleton import (
-    FEET,
-    JOINT_INDEX,
-    MIRROR,
-    NUM_JOINTS,
-    PARENTS,
-    REST_OFFSETS,
-    REST_PELVIS_HEIGHT,
-    bone_lengths,
-    fit_offsets,
-    forward_kinematics,
-    inverse_kinematics,
-    rest_pose,
-)
+from engine.skeleton import (FEET, JOINT_INDEX, MIRROR, NUM_JOINTS, PARENTS, REST_OFFSETS, REST_PELVIS_HEIGHT,
+                             bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics, rest_pose)
 from engine.state_vector import SceneLayout
 
 finite = st.floats(-3.0, 3.0, allow_nan=False, width=64)

@@ -26,14 +26,8 @@ from ...geometry.rotations_torch import quat_to_matrix, safe_norm, world_to_loca
 from .context import EnergyConfig, EnergyContext
 from .geometry import body_points, object_sdf, project, soft_polyline_sq_distance
 from .physics import foot_skate_energy, ground_energy, penetration_energy, smoothness_energy
-from .terms import (
-    contact_energy,
-    hand_contact_energy,
-    keyframe_energy,
-    object_energy,
-    spacing_energy,
-    trajectory_energy,
-)
+from .terms import (contact_energy, hand_contact_energy, keyframe_energy, object_energy, spacing_energy,
+                    trajectory_energy)
 
 __all__ = ["ENERGIES", "STAGE", "EnergyConfig", "EnergyContext", "EnergySchedule", "EnergyWeights", "total_energy",
            "body_points", "object_sdf", "project", "quat_to_matrix", "safe_norm", "soft_polyline_sq_distance",

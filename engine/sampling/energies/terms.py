@@ -16,15 +16,8 @@ from torch import Tensor
 
 from ...geometry.rotations_torch import quat_to_matrix, safe_norm
 from .context import _EPS, _HAND_JOINTS, EnergyContext, _constants
-from .geometry import (
-    _huber,
-    _invalid_bias,
-    _pairs,
-    _polyline_segments,
-    _soft_polyline_sq_distance,
-    _soft_segments_sq_distance,
-    project,
-)
+from .geometry import (_huber, _invalid_bias, _pairs, _polyline_segments, _soft_polyline_sq_distance,
+                       _soft_segments_sq_distance, project)
 
 
 def _interaction_gate(occupancy: Tensor | None, like: Tensor) -> Tensor:

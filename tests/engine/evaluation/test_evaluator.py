@@ -7,18 +7,8 @@ import torch
 from engine.camera import StoryboardCamera
 from engine.clip import MotionClip
 from engine.controls import build_controls
-from engine.evaluation import (
-    EvaluatorConfig,
-    EvaluatorError,
-    MotionEvaluator,
-    embedding_diversity,
-    fid,
-    load_evaluator,
-    motion_embeddings,
-    r_precision_top3,
-    save_evaluator,
-    story_embeddings,
-)
+from engine.evaluation import (EvaluatorConfig, EvaluatorError, MotionEvaluator, embedding_diversity, fid,
+                               load_evaluator, motion_embeddings, r_precision_top3, save_evaluator, story_embeddings)
 from engine.evaluation.evaluator import motion_batch, story_batch
 from engine.evaluation.features import motion_features, story_features
 from engine.evaluation.train_evaluator import FeatureCache, TrainConfig, fit, main

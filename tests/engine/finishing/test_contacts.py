@@ -4,15 +4,8 @@ import numpy as np
 import pytest
 
 from engine.controls import build_controls
-from engine.finishing.contacts import (
-    ContactConfig,
-    _arm_penetration,
-    _swivel_clear,
-    hold_object,
-    object_anchors,
-    reach_contacts,
-    step_within_reach,
-)
+from engine.finishing.contacts import (ContactConfig, _arm_penetration, _swivel_clear, hold_object, object_anchors,
+                                       reach_contacts, step_within_reach)
 from engine.metrics import anchor_error
 from engine.objects import ObjectSpec
 from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose

@@ -10,20 +10,8 @@ import pytest
 from engine.cli import main as cli_main
 from engine.clip import MotionClip
 from engine.geometry.rotations import axis_angle_to_matrix, quat_to_matrix, sixd_to_matrix
-from engine.io import (
-    CMU_SALSA_MAP,
-    SMPL22_MAP,
-    BvhError,
-    ImportConfig,
-    JointMap,
-    RetargetError,
-    clip_to_bvh,
-    format_bvh,
-    import_bvh,
-    parse_bvh,
-    read_bvh,
-    write_bvh,
-)
+from engine.io import (CMU_SALSA_MAP, SMPL22_MAP, BvhError, ImportConfig, JointMap, RetargetError, clip_to_bvh,
+                       format_bvh, import_bvh, parse_bvh, read_bvh, write_bvh)
 from engine.io.core4d import list_core4d, load_core4d
 from engine.io.interhuman import ZUP_TO_OURS, list_interhuman, load_interhuman
 from engine.io.resample import resample_linear, resample_quaternions

@@ -2,17 +2,8 @@
 schedule from informative features."""
 import torch
 
-from engine.models.ctmc import (
-    PhasePlan,
-    PhasePlanner,
-    PhasePlannerConfig,
-    contact_timing_error,
-    ctmc_loss,
-    generator_matrix,
-    integrate_occupancy,
-    kolmogorov_residual,
-    phase_accuracy,
-)
+from engine.models.ctmc import (PhasePlan, PhasePlanner, PhasePlannerConfig, contact_timing_error, ctmc_loss,
+                                generator_matrix, integrate_occupancy, kolmogorov_residual, phase_accuracy)
 
 torch.set_num_threads(1)
 N, T_LAT = 120, 30

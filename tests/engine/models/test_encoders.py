@@ -5,15 +5,8 @@ import torch
 
 from engine.camera import StoryboardCamera
 from engine.models.alignment import LatentProjectionHead, alignment_loss, info_nce, latent_alignment_loss, latent_energy
-from engine.models.encoders import (
-    EncoderConfig,
-    SketchConditioner,
-    condition_presence,
-    frames_to_latent,
-    keyframe_gate,
-    lift_loss,
-    path_phase,
-)
+from engine.models.encoders import (EncoderConfig, SketchConditioner, condition_presence, frames_to_latent,
+                                    keyframe_gate, lift_loss, path_phase)
 from engine.skeleton import JOINT_INDEX
 from tests.engine.fixtures import fake_batch
 

@@ -2,14 +2,8 @@
 from noise and from Langevin negatives, and the Lyapunov loss."""
 import torch
 
-from engine.models.potential import (
-    LatentPotential,
-    PotentialConfig,
-    contrastive_divergence_loss,
-    langevin_negatives,
-    lyapunov_loss,
-    ot_warmup_loss,
-)
+from engine.models.potential import (LatentPotential, PotentialConfig, contrastive_divergence_loss, langevin_negatives,
+                                     lyapunov_loss, ot_warmup_loss)
 
 torch.set_num_threads(1)
 T, V, D = 8, 3, 4

@@ -2,18 +2,9 @@
 import pytest
 import torch
 
-from engine.models.student import (
-    LossWeights,
-    RectifiedFlowStudent,
-    combine_losses,
-    consistency_loss,
-    draw_flow_sample,
-    mix_subfields,
-    phase1_losses,
-    teacher_velocity_in_t,
-    time_map,
-    time_map_valid,
-)
+from engine.models.student import (LossWeights, RectifiedFlowStudent, combine_losses, consistency_loss,
+                                   draw_flow_sample, mix_subfields, phase1_losses, teacher_velocity_in_t, time_map,
+                                   time_map_valid)
 from engine.models.teacher import DiffusionTeacher, VPSchedule
 from engine.models.unet import TemporalUNet, UNetConfig
 from tests.engine.fixtures import fake_conditioning

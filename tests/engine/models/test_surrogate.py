@@ -4,19 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from engine.models.surrogate import (
-    DEFAULT_LAYOUT,
-    JacobianSurrogate,
-    SurrogateConfig,
-    exact_latent_gradient,
-    fit_surrogate,
-    flatten_motion,
-    gradient_cosine,
-    init_from_jacobians,
-    random_cotangents,
-    surrogate_loss,
-    unflatten_motion,
-)
+from engine.models.surrogate import (DEFAULT_LAYOUT, JacobianSurrogate, SurrogateConfig, exact_latent_gradient,
+                                     fit_surrogate, flatten_motion, gradient_cosine, init_from_jacobians,
+                                     random_cotangents, surrogate_loss, unflatten_motion)
 from engine.objects import NUM_ANCHORS
 
 torch.set_num_threads(1)

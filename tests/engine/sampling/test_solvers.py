@@ -6,17 +6,8 @@ from engine.models.conditioning import Conditioning
 from engine.models.teacher import DiffusionTeacher, VPSchedule
 from engine.models.unet import TemporalUNet, UNetConfig
 from engine.sampling.cfg import ClassifierFreeGuidance
-from engine.sampling.solvers import (
-    ddim_step,
-    ddim_times,
-    ddpm_step,
-    ddpm_times,
-    euler_step,
-    flow_clean_estimate,
-    flow_renoise,
-    flow_times,
-    heun_step,
-)
+from engine.sampling.solvers import (ddim_step, ddim_times, ddpm_step, ddpm_times, euler_step, flow_clean_estimate,
+                                     flow_renoise, flow_times, heun_step)
 from tests.engine.fixtures import fake_conditioning
 
 torch.set_num_threads(1)
