@@ -69,12 +69,12 @@ def test_a_bad_file_on_the_command_line_is_a_dialog_not_a_crash(tmp_path):
 def drop(qtbot, window, paths):
     from PySide6.QtCore import QMimeData, QPointF, Qt, QUrl
     from PySide6.QtGui import QDropEvent
-    from PySide6.QtWidgets import QApplication
     data = QMimeData()
     data.setUrls([QUrl.fromLocalFile(str(p)) for p in paths])
     event = QDropEvent(QPointF(window.width() / 2, window.height() / 2), Qt.CopyAction, data, Qt.LeftButton,
                        Qt.NoModifier)
-    QApplication.sendEvent(window, event)         # through Qt's event dispatch, as a real drop
+    window.dropEvent(event)                       # the handler a real drop reaches (Qt routes a drop only
+                                                  # while a drag is in progress, which offscreen has not)
 
 
 def test_dropped_files_open_or_say_why(qtbot, window, tmp_path, dialogs):
