@@ -26,6 +26,8 @@ _FRAME_TIME = re.compile(r"^Frame\s+Time\s*:\s*(\S+)$", re.IGNORECASE)
 
 
 MAX_FRAME_TIME_S = 1.0      # 1 frame a second; capture runs at 24-480 fps
+MIN_FRAME_TIME_S = 1e-4     # 10 kHz
+MAX_FILE_BYTES = 512_000_000  # an hour of one person at 120 fps is about 300 MB of text
 MAX_TAKE_S = 3600.0         # an hour of motion: bounds the memory an import can ask for
 
 
@@ -284,9 +286,9 @@ def _motion_header(lines: list[str], i: int) -> tuple[int, float, int]:
         frame_time = float(value)
     except ValueError:
         frame_time = -1.0
-    if not 0 < frame_time <= MAX_FRAME_TIME_S:
-        raise BvhError(f"line {i}: frame time must be a positive number of seconds, at most "
-                       f"{MAX_FRAME_TIME_S:g}, found '{value}'")
+    if not MIN_FRAME_TIME_S <= frame_time <= MAX_FRAME_TIME_S:
+        raise BvhError(f"line {i}: frame time must be a positive number of seconds from "
+                       f"{MIN_FRAME_TIME_S:g} to {MAX_FRAME_TIME_S:g}, found '{value}'")
     if frames * frame_time > MAX_TAKE_S:
         raise BvhError(f"line {i}: {frames} frames of {frame_time:g} s is {frames * frame_time / 60:.0f} min; "
                        f"takes are at most {MAX_TAKE_S / 60:.0f} min")
@@ -322,6 +324,9 @@ def read_bvh(path: str | Path) -> BvhMotion:
     """Read a BVH file. Raises BvhError on malformed content, FileNotFoundError if missing."""
     path = Path(path)
     try:
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise BvhError(f"{path}: {path.stat().st_size / 1e6:.0f} MB; BVH takes are read up to "
+                           f"{MAX_FILE_BYTES / 1e6:.0f} MB")
         text = path.read_text(encoding="utf-8", errors="replace")
     except IsADirectoryError:
         raise BvhError(f"{path}: is a directory, not a BVH file") from None
