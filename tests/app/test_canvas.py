@@ -148,7 +148,7 @@ def test_sketching_far_out_stays_inside_what_a_storyboard_may_hold(qtbot, canvas
 
 def test_labels_stay_inside_the_canvas(canvas):
     from PySide6.QtCore import QPointF, QRectF
-    from app.canvas import fit_inside
+    from app.canvas_paint import fit_inside
     bounds = QRectF(0, 0, 100, 50)
     assert fit_inside(QRectF(90, 45, 30, 10), bounds) == QRectF(70, 40, 30, 10)
     assert fit_inside(QRectF(-5, -8, 30, 10), bounds) == QRectF(0, 0, 30, 10)
