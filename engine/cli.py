@@ -101,8 +101,6 @@ def cmd_bundle(args) -> int:
 
 def _sampler_config(args):
     from .sampling.config import SamplerError, sampler_config
-    if args.steps < 1 or args.variations < 1:
-        raise UserError("--steps and --variations must be at least 1")
     try:
         return sampler_config(method="student" if args.method == "retrieval" else args.method, steps=args.steps,
                               seed=args.seed, cfg=args.cfg, variations=args.variations, energy=not args.no_energy,

@@ -54,9 +54,6 @@ class Request:
     def method(self) -> str:
         return self.config.method
 
-    def with_config(self, **changes) -> "Request":
-        return Request.build(self.storyboard, replace(self.config, **changes))
-
     def for_model(self, stride: int) -> ModelView:
         """The storyboard at MODEL_FPS, padded to a multiple of `stride` frames, with its controls
         (built once per stride)."""

@@ -6,20 +6,20 @@
     Wrist@key  mean 3D distance of the sketched wrists to the reference at their keys
     Key2D      mean sketch-plane distance of every placed key joint to its drawn point
     FootFloat  95th percentile over frames of each person's lowest foot above the floor
-    FootSkate  share of frames a planted foot slides (engine.metrics)
     Bone       largest change of a bone's length over the clip
     PenMax     deepest interpenetration of people and object in any frame
     Detour     how much further the pelvis bows in depth off its sketched path than the reference
     Timing     largest difference, between keys, of the share of the way covered (0-1) against
                the reference: "stands still, then hurries" scores high
-`ANIMATOR_TARGETS` are the bounds every storyboard must meet (issue 18).
+`ANIMATOR_TARGETS` are the bounds every storyboard must meet (issue 18); FootSkate, the share of
+frames a planted foot slides, is engine.metrics.adherence's.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..clip import MotionClip
-from ..metrics import foot_skate_ratio, frame_penetration
+from ..metrics import frame_penetration
 from ..skeleton import FEET, HANDS, JOINT_INDEX, PARENTS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
@@ -34,8 +34,7 @@ MIN_TRAVEL_M = 0.3     # key intervals shorter than this in the reference have n
 def animator_metrics(clip: MotionClip, storyboard: Storyboard, reference: MotionClip | None = None) -> dict[str, float]:
     joints = np.asarray(clip.joints, float)                                  # (N, H, 22, 3)
     out = {"Pop": pop(joints), "Grip": grip(clip, storyboard), "Key2D": key_error_2d(joints, storyboard),
-           "FootFloat": foot_float(joints), "FootSkate": foot_skate_ratio(joints, clip.fps),
-           "Bone": bone_change(joints),
+           "FootFloat": foot_float(joints), "Bone": bone_change(joints),
            "PenMax": float(frame_penetration(joints, clip.obj_pose, [o.spec for o in storyboard.objects]).max())}
     if reference is not None:
         ref = np.asarray(reference.joints, float)
@@ -129,8 +128,3 @@ def timing(joints: np.ndarray, reference: np.ndarray, storyboard: Storyboard) ->
                 continue
             worst = max(worst, float(np.abs(_progress(joints[a:b + 1, h, PELVIS]) - _progress(ref_path)).max()))
     return worst
-
-
-def targets_met(figures: dict[str, float]) -> dict[str, bool]:
-    """Which of ANIMATOR_TARGETS one clip's figures meet."""
-    return {k: figures[k] <= bound for k, bound in ANIMATOR_TARGETS.items() if k in figures}

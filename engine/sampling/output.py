@@ -63,9 +63,10 @@ class Output:
             return per_frame
         return resample_linear(per_frame, MODEL_FPS, self.storyboard.fps)[:self.storyboard.length].astype(per_frame.dtype)
 
-    def clip(self, motion: dict[str, torch.Tensor], k: int, phase: np.ndarray) -> MotionClip:
+    def clip(self, motion: dict[str, torch.Tensor], k: int, phase: np.ndarray, contact: bool = True) -> MotionClip:
         """Variation k of a decoded motion as a clip of the storyboard's agents and objects at its
-        frame rate; `phase` (frames at MODEL_FPS, 3) is the occupancy to give it."""
+        frame rate; `phase` (frames at MODEL_FPS, 3) is the occupancy to give it; `contact`: measure
+        its hand contacts (not when finishing will move the hands)."""
         n, h, o, sb = self.frames, self.humans, self.objects, self.storyboard
         joints = motion["joints"][k, :n, :h].numpy()
         rot6d = motion["rot6d"][k, :n, :h].numpy()
@@ -80,13 +81,15 @@ class Output:
                                                    for k2, v in kw.items()})
         if sb.fps != MODEL_FPS:
             clip = resample_clip(clip, sb.fps).slice(0, sb.length)
-        return replace(clip, contact=_hand_contact(clip.joints, clip.obj_anchors, clip.phase))
+        return replace(clip, contact=_hand_contact(clip.joints, clip.obj_anchors, clip.phase)) if contact else clip
 
     def final_clips(self, motion: dict[str, torch.Tensor], occupancy: torch.Tensor | None) -> list[MotionClip]:
         """Every variation, through engine.finishing unless the config says not to, its hand
         contacts measured on the result."""
-        clips = [self.clip(motion, k, self.phase(occupancy, k)) for k in range(motion["joints"].shape[0])]
-        if not self.config.finish:
+        finishing = self.config.finish
+        clips = [self.clip(motion, k, self.phase(occupancy, k), contact=not finishing)
+                 for k in range(motion["joints"].shape[0])]
+        if not finishing:
             return clips
         finished = [finish(clip, self.storyboard) for clip in clips]
         return [replace(c, contact=_hand_contact(c.joints, c.obj_anchors, c.phase)) for c in finished]
