@@ -200,13 +200,14 @@ class SketchCanvas(CanvasPainting, QWidget):
                     return obj.id, int(np.argmin(d))
         return None
 
-    def _hand_at(self, uv) -> tuple[str, str] | None:
-        for agent in self._doc.storyboard.agents:
-            for hand in ("left", "right"):
-                p = self._hand_position(agent.id, hand)
-                if p is not None and np.linalg.norm(p - uv) < 2 * self._hit():
-                    return agent.id, hand
-        return None
+    def _hand_at(self, uv, other_than: str | None = None) -> tuple[str, str] | None:
+        """(agent, hand) of the hand nearest uv within reach of a click, of any agent but
+        `other_than` (at a hand-off both people's hands are under the pointer)."""
+        found = [(float(np.linalg.norm(p - uv)), agent.id, hand) for agent in self._doc.storyboard.agents
+                 if agent.id != other_than for hand in ("left", "right")
+                 for p in [self._hand_position(agent.id, hand)] if p is not None]
+        distance, agent, hand = min(found, default=(np.inf, None, None))
+        return (agent, hand) if distance < 2 * self._hit() else None
 
     def _contact_at(self, uv) -> int | None:
         for i, c in enumerate(self._doc.storyboard.contacts):
@@ -316,8 +317,8 @@ class SketchCanvas(CanvasPainting, QWidget):
         self._gesture = _Gesture("rect" if shape == "rectangle" else "lasso", [uv, uv])
 
     def _press_contact(self, uv):
-        hand = self._hand_at(uv)
         if self._pending_hand is None:
+            hand = self._hand_at(uv)
             if hand is None:
                 self.message.emit("Contact: click a hand (a wrist of a keypose) first.")
                 return
@@ -327,10 +328,10 @@ class SketchCanvas(CanvasPainting, QWidget):
         agent, which = self._pending_hand
         frame, last = self._doc.frame, self._doc.storyboard.length - 1
         start, end = self._doc.span_or((frame, min(frame + 20, last)))
-        anchor = self._anchor_at(uv)
+        anchor, hand = self._anchor_at(uv), self._hand_at(uv, other_than=agent)
         if anchor is not None:
             contact = Contact(agent, which, start, end, object=anchor[0], anchor=anchor[1])
-        elif hand is not None and hand[0] != agent:
+        elif hand is not None:
             contact = Contact(agent, which, start, end, other_agent=hand[0], other_hand=hand[1])
         else:
             self.message.emit("Contact: click an object anchor (side of an object) or another person's hand.")
@@ -379,16 +380,22 @@ class SketchCanvas(CanvasPainting, QWidget):
             field_name, mine = "object_paths", lambda s: s.object == sel.object
         else:
             field_name, mine = "trajectories", lambda s: s.agent == sel.agent and s.joint == sel.joint
-        strokes = getattr(sb, field_name)
-        for i, s in enumerate(strokes):
-            if mine(s):
-                redrawn = splice(s.points, raw, 2 * self._hit())
-                if redrawn is not None:
-                    new = Trajectory(s.agent, s.joint, s.start, s.end, redrawn) if field_name == "trajectories" \
-                        else ObjectPath(s.object, s.start, s.end, redrawn)
-                    doc.undo_stack.push(cmd.ReplaceStroke(doc, field_name, i, new, "Redraw part of path"))
-                    return
         start, end = doc.span_or((0, sb.length - 1))
+        for i, s in enumerate(getattr(sb, field_name)):
+            if not mine(s) or s.end < start or end < s.start:
+                continue
+            # A stroke drawn over a path of the same frames redraws that part of it; a path of
+            # other frames it overlaps would contradict it.
+            redrawn = splice(s.points, raw, 2 * self._hit()) if (s.start, s.end) == (start, end) else None
+            if redrawn is None:
+                self.message.emit(f"A path for the same {'object' if field_name == 'object_paths' else 'joint'} "
+                                  f"already covers frames {s.start}-{s.end}: start on it to redraw part of "
+                                  "it, erase it, or select frames on the timeline that it does not cover.")
+                return
+            new = Trajectory(s.agent, s.joint, s.start, s.end, redrawn) if field_name == "trajectories" \
+                else ObjectPath(s.object, s.start, s.end, redrawn)
+            doc.undo_stack.push(cmd.ReplaceStroke(doc, field_name, i, new, "Redraw part of path"))
+            return
         points = clean_stroke(raw)
         item = ObjectPath(sel.object, start, end, points) if field_name == "object_paths" \
             else Trajectory(sel.agent, sel.joint, start, end, points)

@@ -89,7 +89,10 @@ class FileActions:
 
     def save_as(self) -> bool:
         path, _ = QFileDialog.getSaveFileName(self, "Save Storyboard", self._last_dir(), FILE_FILTER)
-        return self.save_to(Path(path)) if path else False
+        if not path:
+            return False
+        path = Path(path)   # without .json the Open dialog's filter would hide the file
+        return self.save_to(path if path.suffix.lower() == ".json" else path.with_name(path.name + ".json"))
 
     def save_to(self, path: Path) -> bool:
         path = Path(path)

@@ -31,6 +31,7 @@ from .phase_strip import PhaseStrip, phase_legend_html
 from .playback import SPEEDS, Playback, speed_label
 from .poses import previous_keypose
 from .properties import PropertiesPanel
+from .shortcuts import WindowShortcutsFirst
 from .session import GenerationSession
 from .timeline import PlaybackControls, Timeline, delete_keyframe
 from .view_options import LABELS as VIEW_LABELS
@@ -92,6 +93,7 @@ class MainWindow(FileActions, QMainWindow):
         self.viewport.empty_hint = "No motion yet.\nSketch, then press \u25b6 Generate (Ctrl+Enter)."
         self.properties = PropertiesPanel(self.doc)
         self._build_actions()
+        self._shortcuts_first = WindowShortcutsFirst(self)
         self._build_docks()
         self._build_menus()
         self._build_toolbar()

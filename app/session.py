@@ -69,6 +69,10 @@ class GenerationSession(QObject):
             storyboard.validate()
         except StoryboardError as e:
             return f"The storyboard cannot be generated from: {e}"
+        if not (storyboard.keyposes or storyboard.trajectories or storyboard.contacts or storyboard.object_keys):
+            # The model would make up two people who walk into each other.
+            return ("Nothing to generate from yet: place a keypose (K), draw a path (T) or add a contact (C) "
+                    "for the people to follow.")
         self.storyboard, self.settings, self.latest = storyboard, settings, None
         generate = self.generate
         self._runner.start(lambda: generate(storyboard, settings))

@@ -12,7 +12,9 @@ that keep each person's bone lengths:
    legs (feet.py);
 4. the object as a rigid body that moves only in the hands that hold it, and the arms reaching
    its grips (or the partner's hand) over every contact span (contacts.py); a holder the grip is
-   beyond arm's reach of steps towards it first, before the feet are planted.
+   beyond arm's reach of steps towards it first, before the feet are planted;
+5. knees and elbows that the stages above left popping smoothed on the circles that keep their
+   bone lengths (limbs.py).
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
 """
 from __future__ import annotations
@@ -28,6 +30,7 @@ from ..storyboard import Storyboard
 from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts, step_within_reach
 from .feet import FeetConfig, lock_feet, settle_on_ground
 from .keys import key_frames
+from .limbs import LimbConfig, steady_limbs
 from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
 
 TUNED_FPS = 20.0   # the configs' durations (their DURATIONS fields) are frames at this rate
@@ -42,6 +45,7 @@ class FinishConfig:
     warp: WarpConfig = field(default_factory=WarpConfig)
     contact: ContactConfig = field(default_factory=ContactConfig)
     foot: FeetConfig = field(default_factory=FeetConfig)
+    limbs: LimbConfig = field(default_factory=LimbConfig)
 
 
 def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -72,7 +76,7 @@ def lasting_as_long(config, fps: float):
 def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig()) -> MotionClip:
     """The clip (people in the storyboard's agent order) with its constraints made exact."""
     config = replace(config, **{part: lasting_as_long(getattr(config, part), clip.fps)
-                                for part in ("warp", "contact", "foot")})
+                                for part in ("warp", "contact", "foot", "limbs")})
     joints, offsets = consistent_skeleton(np.asarray(clip.joints, float), storyboard)
     if config.keyposes:
         joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)
@@ -89,6 +93,7 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
     if config.contacts:
         joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact, kw.get("obj_pose"))
+    joints = steady_limbs(joints, config.limbs)
     rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
                    bone_offsets=offsets.astype(np.float32), **kw)

@@ -26,6 +26,7 @@ from ..geometry.rotations import normalize
 from ..skeleton import ANKLES, FEET, JOINT_INDEX
 from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
+from .blend import smooth_correction
 from .keys import closeness_to_keys
 
 HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
@@ -36,7 +37,8 @@ KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
 class FeetConfig:
     """Thresholds of the feet finishing; durations in frames at TUNED_FPS."""
     DURATIONS: ClassVar[tuple[str, ...]] = ("speed_sigma", "min_stance_frames", "blend_frames", "step_frames",
-                                            "max_step_frames", "settle_sigma", "crouch_window", "crouch_sigma")
+                                            "max_step_frames", "correction_frames", "settle_sigma", "crouch_window",
+                                            "crouch_sigma")
     # Foot joint height when standing (the rest skeleton's; EnergyConfig.foot_height).
     foot_height: float = 0.02        # m
     # A foot may be planted while its joint is under this height (metrics' contact height).
@@ -53,6 +55,7 @@ class FeetConfig:
     # A gliding foot is re-planted once it has drifted this far, after a step of step_frames.
     max_drift: float = 0.3           # m
     step_frames: int = 4
+    correction_frames: float = 2.5   # time scale over which a correction of the feet changes (blend.py)
     min_step_m: float = 0.05          # plants closer than this need no room to step between them
     step_height: float = 0.08        # m; peak of a made-up step (the synthesizer's swing lift)
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
@@ -172,6 +175,7 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
     carried = np.stack([np.interp(frames, frames[on], correction[on, k]) for k in range(3)], -1)
     ramp = 1.0 - distance_transform_edt(~on) / (config.blend_frames + 1)
     goal = foot + smoothstep(ramp)[:, None] * carried
+    stepped = np.zeros(n, bool)                                               # made-up steps
     # A short gap is a step from one plant to the next, eased so the foot leaves and lands
     # slowly. A swing keeps its own shape, shifted from the first plant's correction to the
     # next one's; a gap that never leaves the floor was a slide and becomes an arc that rises
@@ -185,9 +189,19 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
             goal[a:b] = target[a - 1] + ease * (target[b] - target[a - 1])
             lift = config.step_height - config.foot_height
             goal[a:b, 1] = config.foot_height + lift * np.sqrt(np.sin(np.pi * s))
+            stepped[a:b] = True
         else:
             goal[a:b] = foot[a:b] + correction[a - 1] + ease * (correction[b] - correction[a - 1])
-    return goal
+    # Plants and keys stay exact; everywhere else the correction changes smoothly (a foot that
+    # left a plant at full speed, or went back to its own path in three frames, popped the knee).
+    # Made-up steps keep their heights: flattened, they would slide along the floor.
+    held = on.copy()
+    held[[k for k in keys if 0 <= k < n]] = True
+    stiffness = config.correction_frames ** 4
+    smooth = foot + np.concatenate([smooth_correction((goal - foot)[:, [0, 2]], held, stiffness),
+                                    smooth_correction((goal - foot)[:, [1]], held | stepped, stiffness)], -1)[:, [0, 2, 1]]
+    smooth[:, 1] = np.maximum(smooth[:, 1], np.minimum(goal[:, 1], config.foot_height))   # not into the floor
+    return smooth
 
 
 def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),

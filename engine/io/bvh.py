@@ -190,7 +190,7 @@ def _joint_header(tok: _Tokens, nodes: list[BvhNode], parent: int, line: int, n_
     if word.upper() == "CHANNELS":
         tok.next()
         count_tok, _ = tok.next()
-        if not count_tok.isdigit():
+        if not (count_tok.isascii() and count_tok.isdigit()):
             raise BvhError(f"line {cline}: CHANNELS needs a count, found '{count_tok}'")
         for _ in range(int(count_tok)):
             ch, chl = tok.next()
@@ -278,7 +278,7 @@ def _header_value(lines: list[str], i: int, pattern: re.Pattern, what: str) -> t
 
 def _motion_header(lines: list[str], i: int) -> tuple[int, float, int]:
     value, i = _header_value(lines, i, _FRAMES, "Frames: <count>")
-    if not value.isdigit():
+    if not (value.isascii() and value.isdigit()):
         raise BvhError(f"line {i}: frame count must be a whole number, found '{value}'")
     frames = int(value)
     value, i = _header_value(lines, i, _FRAME_TIME, "Frame Time: <seconds>")

@@ -158,3 +158,46 @@ def test_labels_stay_inside_the_canvas(canvas):
     for baseline in (QPointF(canvas.width() - 4, canvas.height() + 10), QPointF(-30, 2)):
         rect = canvas.label_rect(baseline, label, canvas.font())
         assert QRectF(canvas.rect()).contains(rect) and rect.width() > 40
+
+
+def test_a_path_of_other_frames_is_not_spliced_and_an_overlap_is_refused(qtbot, canvas):
+    doc = canvas._doc
+    doc.set_tool("trajectory")
+    doc.select(agent="A", joint="pelvis")
+    doc.set_span((0, 40))
+    first = np.stack([np.linspace(-0.8, 0.0, 30), np.zeros(30)], -1)
+    drag(qtbot, canvas, first)
+    messages = []
+    canvas.message.connect(messages.append)
+    # Starts where the first ends, for frames 41-119: a path of its own, not a redraw of the first.
+    doc.set_span((41, 119))
+    drag(qtbot, canvas, np.stack([np.linspace(0.0, 0.8, 30), np.zeros(30)], -1))
+    assert [(t.start, t.end) for t in doc.storyboard.trajectories] == [(0, 40), (41, 119)]
+    assert doc.storyboard.trajectories[0].points[-1] == pytest.approx(first[-1], abs=0.01)
+    # Frames 20-60 overlap both: refused, with a message, and nothing changes.
+    doc.set_span((20, 60))
+    drag(qtbot, canvas, np.stack([np.linspace(-0.5, 0.5, 30), np.full(30, 0.4)], -1))
+    assert len(doc.storyboard.trajectories) == 2 and "already covers frames" in messages[-1]
+    # Another joint over the same frames is fine.
+    doc.select(agent="A", joint="r_wrist")
+    drag(qtbot, canvas, np.stack([np.linspace(-0.5, 0.5, 30), np.full(30, 0.4)], -1))
+    assert len(doc.storyboard.trajectories) == 3
+
+
+def test_the_contact_tool_takes_the_nearest_hand_of_any_person(qtbot, canvas):
+    """At a hand-off A's and B's hands are both under the pointer: the click takes the nearer,
+    whichever person it belongs to, and the second click the other person's."""
+    doc = canvas._doc
+    doc.replace_storyboard(sample_storyboard(), None)
+    doc.set_frame(60)
+    doc.set_span((60, 70))
+    sb = doc.storyboard
+    wrist = JOINT_INDEX["r_wrist"]
+    a_hand = cmd.find_keypose(sb, "A", 60).points[wrist]
+    b_pose = cmd.find_keypose(sb, "B", 60)
+    b_pose.points[JOINT_INDEX["l_wrist"]] = a_hand + (0.06, 0.0)     # B's left hand 6 cm right of A's
+    doc.set_tool("contact")
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, a_hand + (0.05, 0.0)))   # nearer B's
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, a_hand + (0.02, 0.0)))   # A's, B excluded
+    c = doc.storyboard.contacts[-1]
+    assert (c.agent, c.hand, c.other_agent, c.other_hand) == ("B", "left", "A", "right")

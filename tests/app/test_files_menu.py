@@ -121,3 +121,11 @@ def test_open_example_menu_lists_the_examples_by_their_text(window, dialogs):
                             + [k.outline for k in expected.object_keys])
     px = window.canvas.to_px(sketch)
     assert (px >= 0).all() and (px[:, 0] <= window.canvas.width()).all() and (px[:, 1] <= window.canvas.height()).all()
+
+
+def test_save_adds_json_so_that_open_shows_the_file(window, save_dialog, tmp_path, dialogs):
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    save_dialog.path = tmp_path / "handoff"
+    menu_action(window, "Save &As").trigger()
+    assert Storyboard.load(tmp_path / "handoff.json").length == window.doc.storyboard.length
+    assert not (tmp_path / "handoff").exists() and window.doc.path == tmp_path / "handoff.json"

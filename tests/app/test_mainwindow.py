@@ -136,6 +136,7 @@ def test_a_fast_sampler_hands_over_a_step_per_interval_and_always_the_last(qtbot
 def test_cancel_stops_within_one_step(qtbot, make_window, dialogs):
     sampler = FakeSampler(delay_s=0.05)
     window = make_window(generate=sampler)
+    load_sample(window)
     window.doc.set_settings(window.doc.settings.__class__(steps=200))
     with qtbot.waitSignal(window.session.cancelled, timeout=10_000):
         window.generate()
@@ -327,6 +328,7 @@ def test_the_cpu_threads_preference_reaches_the_sampler_and_is_kept(qtbot, make_
         return fake(storyboard, settings)
 
     window = make_window(generate=recording)
+    load_sample(window)
     menu = window.threads_menu
     menu.popup(window.mapToGlobal(window.rect().center()))
     qtbot.waitExposed(menu)
@@ -342,3 +344,26 @@ def test_the_cpu_threads_preference_reaches_the_sampler_and_is_kept(qtbot, make_
     window.generate()
     qtbot.waitUntil(lambda: not window.session.running, timeout=10_000)
     assert seen[-1].threads is None
+
+
+def test_shortcuts_win_over_number_fields_but_not_over_typing(qtbot, window):
+    """A spin box in Properties has focus: the tool letters and Ctrl+Z are the window's; a field
+    of free text keeps them."""
+    from PySide6.QtWidgets import QLineEdit
+    load_sample(window)
+    window.show()
+    qtbot.waitExposed(window)
+    window.doc.undo_stack.push(cmd.DeleteKeypose(window.doc, "A", 0))
+    spin = window.properties.frames
+    spin.setFocus()
+    qtbot.waitUntil(spin.hasFocus)
+    qtbot.keyClick(spin, Qt.Key_K)
+    assert window.doc.tool == "keypose"
+    qtbot.keyClick(spin, Qt.Key_Z, Qt.ControlModifier)
+    assert window.doc.undo_stack.index() == 0 and cmd.find_keypose(window.doc.storyboard, "A", 0) is not None
+    text = QLineEdit()
+    window.properties.layout().addWidget(text)
+    text.setFocus()
+    qtbot.waitUntil(text.hasFocus)
+    qtbot.keyClick(text, Qt.Key_E)
+    assert text.text() == "e" and window.doc.tool == "keypose"

@@ -61,3 +61,10 @@ def test_cancel_and_failure_leave_the_documents_result(qtbot):
     with qtbot.waitSignal(session.failed, timeout=10_000) as failed:
         session.start(GenerationSettings(steps=3))
     assert "patience" in failed.args[0] and doc.clip is None and not session.running
+
+
+def test_an_empty_storyboard_says_what_is_missing(qtbot):
+    doc = Document()
+    session = GenerationSession(doc, FakeSampler())
+    problem = session.start(GenerationSettings())
+    assert problem and "keypose" in problem and "path" in problem and not session.running

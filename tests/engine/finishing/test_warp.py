@@ -2,9 +2,11 @@
 import numpy as np
 import pytest
 
+from engine.bench.animator import pop
 from engine.controls import build_controls
 from engine.finishing import consistent_skeleton, finish
 from engine.finishing.keys import key_frames, spread
+from engine.finishing.limbs import LIMBS
 from engine.finishing.warp import follow_paths, sketched_scale, solve_keypose, warp_to_keyposes
 from engine.geometry.polylines import point_polyline_distance
 from engine.metrics import keypose_errors_2d
@@ -137,4 +139,7 @@ def test_finish_without_keyposes_or_strokes_only_fixes_the_skeleton(scene):
     clip, sb = scene
     bare = type(sb)(fps=sb.fps, length=sb.length, camera=sb.camera, agents=sb.agents)
     done = finish(clip, bare)
-    assert np.linalg.norm(done.joints - clip.joints, axis=-1).max() < 0.05
+    moved = np.linalg.norm(done.joints - clip.joints, axis=-1)              # (N, H, 22)
+    # Knees and elbows may move where the synthesized clip's own feet pop (by 38 cm here).
+    assert np.delete(moved, [mid for _, mid, _ in LIMBS], axis=2).max() < 0.05
+    assert pop(done.joints.astype(float)) <= pop(clip.joints.astype(float)) + 1e-6

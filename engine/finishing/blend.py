@@ -1,0 +1,42 @@
+"""Corrections blended over time: an edit that must hold exactly on some frames and fade or
+change elsewhere, without a jolt.
+
+A correction (the finished motion less the generated one) that switches on in one frame, or
+swings from one plant's to the next in two, shows as a pop however smooth the generated motion
+is. `smooth_correction` keeps the correction exactly on the frames that are held and makes it
+as smooth as it can elsewhere (least second differences) while staying near what the stage
+asked for: a Whittaker smoother with hard constraints, one banded solve (`smooth_path`).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import solveh_banded
+
+HELD_WEIGHT = 1e8     # a held frame's weight against the smoothness: held to far below a millimetre
+
+
+def smooth_path(values: np.ndarray, weight: np.ndarray, stiffness: float) -> np.ndarray:
+    """The path (N, D) nearest to `values` (N, D) under per-frame weights (N,) with least squared
+    second differences times `stiffness` (about stiffness ** 0.25 frames is the time scale over
+    which it changes) -> (N, D). A frame of weight HELD_WEIGHT stays where it is."""
+    n = len(values)
+    if n < 3:
+        return np.array(values, float)
+    # A = diag(weight) + stiffness * D2^T D2, D2 the (N-2, N) second difference; upper banded form.
+    diagonals = np.zeros((3, n))
+    d2 = (1.0, -2.0, 1.0)
+    for offset in range(3):   # (D2^T D2)[i, i + offset] summed over the rows of D2 that touch both
+        for k in range(3 - offset):
+            diagonals[2 - offset, k + offset: n - 2 + k + offset] += stiffness * d2[k] * d2[k + offset]
+    diagonals[2] += weight
+    return solveh_banded(diagonals, weight[:, None] * values)
+
+
+def smooth_correction(correction: np.ndarray, held: np.ndarray, stiffness: float) -> np.ndarray:
+    """correction (N, D) asked for per frame; held (N,) bool: frames where it must stay exact;
+    elsewhere it changes smoothly, near what was asked (stiffness as smooth_path's). -> (N, D)."""
+    if held.all():
+        return np.array(correction, float)
+    out = smooth_path(correction, np.where(held, HELD_WEIGHT, 1.0), stiffness)
+    out[held] = correction[held]              # exactly, not to the solver's 1e-7
+    return out

@@ -1,0 +1,84 @@
+"""Knees and elbows that never pop: the last pass of finishing.
+
+The stages before it place the ends of the limbs (feet on their plants, wrists on keys and grips)
+and each re-solves the knee or elbow between them by two-bone IK in its own way. Where a stage
+hands over to the next, where a limb is nearly straight (the knee's place is then very sensitive
+to the foot's) or folded (the hip-to-ankle or shoulder-to-wrist line turns fast), the middle joint
+can jump 20-40 cm in one frame while its ends move a few centimetres. This pass keeps every other
+joint where it is and moves only the middle ones: where a middle joint's path pops, each frame's
+knee or elbow goes to the point of its circle (every place that keeps both bone lengths with the
+ends fixed) nearest to its path smoothed over time. Motion that does not pop is left exactly.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from scipy.ndimage import maximum_filter1d
+
+from ..geometry.rotations import normalize
+from ..skeleton import JOINT_INDEX
+from .blend import smooth_path
+
+LIMBS = tuple(tuple(JOINT_INDEX[f"{side}_{joint}"] for joint in chain)
+              for chain in (("hip", "knee", "ankle"), ("shoulder", "elbow", "wrist")) for side in "lr")
+
+
+@dataclass
+class LimbConfig:
+    """Durations in frames at TUNED_FPS."""
+    DURATIONS: ClassVar[tuple[str, ...]] = ("smooth_frames", "spread")
+    tolerance: float = 0.02      # m; a joint off the middle of its neighbours by less is smooth
+    smooth_frames: float = 1.0   # time scale of the smoothing where a limb pops (blend.smooth_path)
+    popping_weight: float = 0.3  # how much a popping frame's own place counts against smoothness
+    spread: int = 2              # frames either side of a pop that are smoothed with it
+    passes: int = 3
+
+
+def _spike(path: np.ndarray) -> np.ndarray:
+    """How far each frame of a path (N, ..., 3) lies off the middle of its neighbours -> (N, ...);
+    the first and last frames 0."""
+    out = np.zeros(path.shape[:-1])
+    out[1:-1] = np.linalg.norm(path[1:-1] - 0.5 * (path[:-2] + path[2:]), axis=-1)
+    return out
+
+
+def on_circle(root: np.ndarray, end: np.ndarray, upper: np.ndarray, lower: np.ndarray,
+              goal: np.ndarray) -> np.ndarray:
+    """The middle joint of a two-bone chain with its ends fixed, nearest to goal: root, end, goal
+    (..., 3), bone lengths upper, lower (...,) -> (..., 3). The place keeps both bone lengths
+    exactly wherever the ends are within reach of each other (finishing keeps them so)."""
+    to_end = end - root
+    dist = np.maximum(np.linalg.norm(to_end, axis=-1), 1e-9)
+    axis = to_end / dist[..., None]
+    along = np.clip((upper ** 2 - lower ** 2 + dist ** 2) / (2 * dist), -upper, upper)
+    radius = np.sqrt(np.maximum(upper ** 2 - along ** 2, 0.0))
+    centre = root + along[..., None] * axis
+    off = goal - centre
+    off -= np.sum(off * axis, axis=-1, keepdims=True) * axis
+    return centre + radius[..., None] * normalize(off)
+
+
+def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig()) -> np.ndarray:
+    """joints (N, H, 22, 3) -> (N, H, 22, 3) with knees and elbows that do not pop; every other
+    joint and every bone length unchanged."""
+    out = np.array(joints, float)
+    if len(out) < 3:
+        return out
+    stiffness = config.smooth_frames ** 4
+    for root, mid, end in LIMBS:
+        upper = np.linalg.norm(out[:, :, mid] - out[:, :, root], axis=-1)          # (N, H)
+        lower = np.linalg.norm(out[:, :, end] - out[:, :, mid], axis=-1)
+        for _ in range(config.passes):
+            path = out[:, :, mid]                                                  # (N, H, 3)
+            # A middle joint that only follows a spike of its ends is not popping.
+            excess = _spike(path) - np.maximum(_spike(out[:, :, root]), _spike(out[:, :, end]))
+            popping = maximum_filter1d(excess > config.tolerance, 2 * config.spread + 1, axis=0)
+            if not popping.any():
+                break
+            goal = path.copy()
+            for h in np.flatnonzero(popping.any(axis=0)):
+                goal[:, h] = smooth_path(path[:, h], np.where(popping[:, h], config.popping_weight, 1.0), stiffness)
+            out[:, :, mid] = on_circle(out[:, :, root], out[:, :, end], upper, lower, goal)
+    return out

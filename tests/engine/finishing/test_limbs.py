@@ -1,0 +1,69 @@
+"""Knees and elbows that do not pop (engine/finishing/limbs.py) and corrections blended over time
+(engine/finishing/blend.py)."""
+import numpy as np
+
+from engine.bench.animator import pop
+from engine.finishing.blend import smooth_correction, smooth_path
+from engine.finishing.limbs import LIMBS, LimbConfig, on_circle, steady_limbs
+from engine.skeleton import bone_lengths
+from engine.synth import synthesize
+
+MIDDLE = [mid for _, mid, _ in LIMBS]
+
+
+def test_a_held_correction_is_exact_and_changes_smoothly_elsewhere():
+    correction = np.zeros((40, 2))
+    correction[15:25] = (0.4, -0.2)                     # switched on for ten frames, off again
+    held = np.zeros(40, bool)
+    held[15:25] = held[:3] = held[-3:] = True
+    out = smooth_correction(correction, held, 2.5 ** 4)
+    assert np.array_equal(out[held], correction[held])
+    assert np.abs(np.diff(out, 2, axis=0)).max() < 0.25 * np.abs(np.diff(correction, 2, axis=0)).max()
+
+
+def test_smooth_path_is_the_least_squares_solution():
+    rng = np.random.default_rng(0)
+    values, weight = rng.normal(size=(30, 3)), rng.uniform(0.1, 2.0, 30)
+    second = np.diff(np.eye(30), 2, axis=0)
+    dense = np.linalg.solve(np.diag(weight) + 7.0 * second.T @ second, weight[:, None] * values)
+    np.testing.assert_allclose(smooth_path(values, weight, 7.0), dense, atol=1e-9)
+
+
+def test_on_circle_keeps_both_bone_lengths():
+    rng = np.random.default_rng(1)
+    root, end, goal = rng.normal(size=(3, 50, 3)) * (0.1, 0.3, 1.0)
+    upper, lower = np.full(50, 0.4), np.full(50, 0.42)
+    mid = on_circle(root, end, upper, lower, goal)
+    reachable = np.linalg.norm(end - root, axis=-1) < 0.8
+    np.testing.assert_allclose(np.linalg.norm(mid - root, axis=-1)[reachable], 0.4, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(end - mid, axis=-1)[reachable], 0.42, atol=1e-9)
+
+
+def swivelled_for_one_frame(joints: np.ndarray, frame: int, limb: int) -> np.ndarray:
+    """The motion with one knee or elbow turned half way round its circle in one frame: the pop an
+    IK stage makes when a limb's bend direction flips."""
+    root, mid, end = LIMBS[limb]
+    out = joints.copy()
+    a, m, b = out[frame, :, root], out[frame, :, mid], out[frame, :, end]
+    axis = (b - a) / np.linalg.norm(b - a, axis=-1, keepdims=True)
+    centre = a + np.sum((m - a) * axis, -1, keepdims=True) * axis
+    out[frame, :, mid] = 2 * centre - m
+    return out
+
+
+def test_a_flipped_knee_is_smoothed_and_the_rest_kept():
+    clean = synthesize("handoff", 0, fps=20).joints.astype(float)
+    popped = swivelled_for_one_frame(clean, 40, 0)
+    out = steady_limbs(popped)
+    around = slice(35, 46)
+    assert pop(popped[around]) > 0.2
+    assert pop(out[around]) <= pop(clean[around]) + 0.005                   # as smooth as before
+    assert np.linalg.norm(out - clean, axis=-1)[around].max() < 0.02            # back near where it was
+    assert np.abs(np.delete(out - popped, MIDDLE, axis=2)).max() == 0.0          # only knees and elbows move
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(popped), atol=1e-9)
+
+
+def test_motion_that_does_not_pop_is_left_exactly():
+    clean = synthesize("carry_together", 1, fps=20).joints.astype(float)
+    config = LimbConfig(tolerance=1.0)            # nothing is off its neighbours' middle by a metre
+    assert np.array_equal(steady_limbs(clean, config), clean)
