@@ -6,6 +6,7 @@ reads the document and pushes commands; everything it shows is redrawn from the 
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +41,8 @@ class _Gesture:
 
 class SketchCanvas(CanvasPainting, QWidget):
     message = Signal(str)   # a hint for the status bar
+    dragged = Signal(object)   # Storyboard: a copy with the joint or object drag in progress applied
+    dragEnded = Signal()       # a joint or object drag was released (its edit is in the document)
 
     def __init__(self, document: Document, parent: QWidget | None = None):
         super().__init__(parent)
@@ -256,6 +259,11 @@ class SketchCanvas(CanvasPainting, QWidget):
             g.points[-1] = px
         elif g.kind in ("joint", "rect", "move_object"):
             g.points[1:] = [self.to_uv(px)]
+            edit = self._drag_edit(g)
+            if edit is not None:
+                dragged = copy.deepcopy(self._doc.storyboard)
+                edit.apply(dragged)
+                self.dragged.emit(dragged)
         else:
             g.points.append(self.to_uv(px))
         self.update()
@@ -265,6 +273,8 @@ class SketchCanvas(CanvasPainting, QWidget):
         if g is None or g.kind == "pan":
             return
         getattr(self, f"_finish_{g.kind}")(g)
+        if g.kind in ("joint", "move_object"):
+            self.dragEnded.emit()
         self.update()
 
     def wheelEvent(self, event):
@@ -358,15 +368,21 @@ class SketchCanvas(CanvasPainting, QWidget):
             doc.undo_stack.push(cmd.DeleteObjectKey(doc, obj[1]))
 
     # ---- tools: release ------------------------------------------------------------------------
-    def _finish_joint(self, g: _Gesture):
-        if np.linalg.norm(g.points[-1] - g.points[0]) > 1e-6:
-            self._doc.undo_stack.push(cmd.MoveKeyposeJoint(self._doc, g.agent, self._doc.frame,
-                                                           g.joint, g.points[-1]))
-
-    def _finish_move_object(self, g: _Gesture):
+    def _drag_edit(self, g: _Gesture) -> cmd.StoryboardCommand | None:
+        """The edit a joint or object drag makes so far (None before it has moved)."""
         delta = g.points[-1] - g.points[0]
-        if np.linalg.norm(delta) > 1e-6:
-            self._doc.undo_stack.push(cmd.MoveObjectKey(self._doc, g.index, delta))
+        if g.kind not in ("joint", "move_object") or np.linalg.norm(delta) <= 1e-6:
+            return None
+        if g.kind == "joint":
+            return cmd.MoveKeyposeJoint(self._doc, g.agent, self._doc.frame, g.joint, g.points[-1])
+        return cmd.MoveObjectKey(self._doc, g.index, delta)
+
+    def _finish_joint(self, g: _Gesture):
+        edit = self._drag_edit(g)
+        if edit is not None:
+            self._doc.undo_stack.push(edit)
+
+    _finish_move_object = _finish_joint
 
     def _finish_stroke(self, g: _Gesture):
         raw = np.array(g.points)

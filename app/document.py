@@ -1,8 +1,9 @@
 """The open document: a pure model the widgets observe (napari style), no widgets here.
 
 It holds the Storyboard, its file path, the dirty flag, the selection, the active tool and its
-options, the playhead frame, the timeline's frame span, the generation settings and the last
-generation's clips and phase occupancy (a running generation is app.session's). Storyboard
+options, the playhead frame, the timeline's frame span, the generation settings, the takes (every
+finished generation) and the clips and phase occupancy shown (a running generation is
+app.session's). Storyboard
 edits go through `commands.py` on `undo_stack`; every other change is a setter that emits its
 signal only when the value really changes.
 """
@@ -18,6 +19,7 @@ from PySide6.QtGui import QUndoStack
 from engine.camera import StoryboardCamera
 from engine.clip import MotionClip
 from engine.storyboard import AGENT_COLORS, Agent, Storyboard
+from engine.takes import MAX_TAKES, Take
 
 from .generation import GenerationSettings
 
@@ -78,6 +80,8 @@ class Document(QObject):
         self.variation = 0
         self.phase: np.ndarray | None = None   # (N, 3) occupancy of the last finished generation
         self._result_source: str | None = None  # the storyboard the clips came from, as JSON
+        self.takes: list[Take] = []            # every generation kept (engine.takes), newest last
+        self.take_index = -1                   # the take shown (-1: none, or a preview or recovery)
         self.reference: MotionClip | None = None
 
     # ---- whole-document changes ------------------------------------------------------------
@@ -91,6 +95,7 @@ class Document(QObject):
         self.frame = 0
         self.span = None
         self.clips, self.variation, self.phase, self._result_source = [], 0, None, None
+        self.takes, self.take_index = [], -1
         self._unsaved_without_edits = dirty
         for signal in (self.storyboardChanged, self.selectionChanged, self.spanChanged,
                        self.resultChanged, self.pathChanged):
@@ -167,7 +172,9 @@ class Document(QObject):
     # ---- generation results ------------------------------------------------------------------
     def set_result(self, clips: list[MotionClip], phase: np.ndarray | None,
                    source: Storyboard | None = None) -> None:
-        """source: the storyboard the clips were generated from (None: the current one)."""
+        """Motion that is no take (a preview, a recovered clip); source: the storyboard the clips
+        were generated from (None: the current one)."""
+        self.take_index = -1
         self.clips, self.variation = list(clips), 0
         self.phase = phase if phase is not None else (clips[0].phase if clips else None)
         self._result_source = (source or self.storyboard).to_json() if clips else None
@@ -179,11 +186,37 @@ class Document(QObject):
         since, or during its generation, and not undone)."""
         return self._result_source is not None and self._result_source != self.storyboard.to_json()
 
+    def add_take(self, take: Take) -> None:
+        """A finished generation: kept (the oldest beyond MAX_TAKES dropped), shown, and unsaved."""
+        self.takes = (self.takes + [take])[-MAX_TAKES:]
+        self._unsaved_without_edits = True
+        self.choose_take(len(self.takes) - 1, force=True)
+        self._emit_dirty()
+
+    def set_takes(self, takes: list[Take]) -> None:
+        """The takes of a reopened storyboard; the newest is shown."""
+        self.takes = list(takes)[-MAX_TAKES:]
+        self.choose_take(len(self.takes) - 1, force=True)
+
+    def choose_take(self, index: int, force: bool = False) -> None:
+        if 0 <= index < len(self.takes) and (force or index != self.take_index):
+            take = self.takes[index]
+            self.clips, self.variation = list(take.clips), take.chosen
+            self.phase = take.clip.phase
+            self._result_source = take.source
+            self.take_index = index
+            self.resultChanged.emit()
+
     def choose_variation(self, index: int) -> None:
+        """Show variation `index`; it becomes the one its take keeps."""
         if 0 <= index < len(self.clips) and index != self.variation:
             self.variation = index
             if self.clips[index].phase is not None:
                 self.phase = self.clips[index].phase
+            if 0 <= self.take_index < len(self.takes) and self.takes[self.take_index].chosen != index:
+                self.takes[self.take_index].chosen = index
+                self._unsaved_without_edits = True
+                self._emit_dirty()
             self.resultChanged.emit()
 
     @property

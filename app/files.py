@@ -15,6 +15,7 @@ from PySide6.QtWidgets import QFileDialog, QMessageBox
 from engine.clip import ClipError, MotionClip
 from engine.export import export_gltf, export_npz, export_object_path
 from engine.storyboard import Storyboard, StoryboardError
+from engine.takes import TakesError, load_takes, save_takes, takes_path
 
 from .autosave import find_recoveries
 from .document import new_storyboard
@@ -60,7 +61,15 @@ class FileActions:
             return False
         self.doc.replace_storyboard(storyboard, Path(path))
         self._remember(Path(path))
-        self.statusBar().showMessage(f"Opened {path}", 5000)
+        takes = takes_path(path)
+        if takes.exists():
+            try:
+                self.doc.set_takes(load_takes(takes))
+            except TakesError as e:
+                self.error(f"Opened {Path(path).name} without its takes: {e}")
+                return True
+        count = len(self.doc.takes)
+        self.statusBar().showMessage(f"Opened {path}" + (f" with {count} take{'s' * (count > 1)}" if count else ""), 5000)
         return True
 
     def _load_storyboard(self, path: str | Path, what: str) -> Storyboard | None:
@@ -99,6 +108,7 @@ class FileActions:
         try:
             self.doc.storyboard.validate()
             self.doc.storyboard.save(path)
+            save_takes(self.doc.takes, takes_path(path))
         except (StoryboardError, OSError) as e:
             self.error(f"Cannot save {path.name}: {e}")
             return False

@@ -26,10 +26,14 @@ class GenerationSettings:
     use_ctmc: bool = True
     steady: bool = False            # damped guidance (SamplerConfig.guidance_max_rate)
     variations: int = 1
+    preview: bool = False           # the fast preview path (while a joint or an object is dragged)
     # Of the machine, not the document: the window fills these in from its preferences.
     threads: int | None = None      # torch threads (None: the cores other programs leave free)
     reserve_cores: float = 0.0      # cores left to the viewport's drawing (software OpenGL)
 
+
+# Settings of this machine or this moment, not of a take (left out of the takes kept).
+MACHINE_SETTINGS = ("preview", "threads", "reserve_cores")
 
 StepStream = Generator[StepEvent, None, GenerationResult]
 
@@ -56,7 +60,7 @@ def start_generation(storyboard: Storyboard, settings: GenerationSettings) -> St
     from engine.sampling.sampler import sample
     config = sampler_config(steps=settings.steps, seed=settings.seed, cfg=settings.cfg, variations=settings.variations,
                             energy=settings.use_energy, ctmc=settings.use_ctmc, steady=settings.steady,
-                            threads=settings.threads, reserve_cores=settings.reserve_cores)
+                            preview=settings.preview, threads=settings.threads, reserve_cores=settings.reserve_cores)
     return (yield from sample(_bundle(), Request.build(storyboard, config)))
 
 

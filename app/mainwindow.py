@@ -27,6 +27,7 @@ from .document import TOOLS, Document
 from .examples import list_examples
 from .files import APP_NAME, FileActions
 from .generation import GenerationSettings, StepStream, start_generation
+from .live_preview import LivePreview
 from .phase_strip import PhaseStrip, phase_legend_html
 from .playback import SPEEDS, Playback, speed_label
 from .poses import previous_keypose
@@ -92,6 +93,8 @@ class MainWindow(FileActions, QMainWindow):
         self.viewport = Viewport()
         self.viewport.empty_hint = "No motion yet.\nSketch, then press \u25b6 Generate (Ctrl+Enter)."
         self.properties = PropertiesPanel(self.doc)
+        self.live_preview = LivePreview(self.canvas, self.session, self.generation_settings, self.generate,
+                                        self.settings, self)
         self._build_actions()
         self._shortcuts_first = WindowShortcutsFirst(self)
         self._build_docks()
@@ -177,6 +180,11 @@ class MainWindow(FileActions, QMainWindow):
                               tip="Generate motion from the storyboard (Ctrl+Enter)")
         self.act_cancel = a("\u25a0  Cancel", self.session.cancel, QKeySequence(Qt.Key_Escape),
                             tip="Stop the running generation (Esc)", enabled=False)
+        self.act_live = a("&Live Preview While Dragging", self.live_preview.set_enabled,
+                          tip="While a joint or an object is dragged, a quick preview follows the pointer; "
+                              "the full generation follows the release")
+        self.act_live.setCheckable(True)
+        self.act_live.setChecked(self.live_preview.enabled)
         # Overlays an artist may want out of the way while judging the motion itself.
         self.view_actions: dict[str, QAction] = {}
         for name, label in VIEW_LABELS.items():
@@ -281,6 +289,7 @@ class MainWindow(FileActions, QMainWindow):
         gen = bar.addMenu("&Generate")
         gen.addActions([self.act_generate, self.act_cancel])
         gen.addSeparator()
+        gen.addAction(self.act_live)
         self.threads_menu = gen.addMenu("CPU &Threads")
         self._build_threads_menu(self.threads_menu)
         view = bar.addMenu("&View")
@@ -435,12 +444,16 @@ class MainWindow(FileActions, QMainWindow):
             delete_keyframe(doc, "agent", doc.selection.agent, doc.frame)
 
     # ---- generation ------------------------------------------------------------------------------
+    def generation_settings(self) -> GenerationSettings:
+        """The document's settings with this machine's: threads, and under software OpenGL (which
+        draws the streamed previews on the same cores) a core left to the drawing."""
+        return replace(self.doc.settings, threads=self.threads_preference(),
+                       reserve_cores=1.0 if self.viewport.draws_on_cpu() else 0.0)
+
     def generate(self) -> None:
-        if self.session.running:
+        if self.session.running and not self.session.settings.preview:   # a preview gives way
             return
-        # Software OpenGL draws the streamed previews on the same cores: leave it one.
-        settings = replace(self.doc.settings, threads=self.threads_preference(),
-                           reserve_cores=1.0 if self.viewport.draws_on_cpu() else 0.0)
+        settings = self.generation_settings()
         problem = self.session.start(settings)
         if problem is not None:
             self.error(problem)
@@ -462,6 +475,10 @@ class MainWindow(FileActions, QMainWindow):
 
     def _on_generated(self, result: GenerationResult) -> None:
         count = len(result.clips)
+        if self.session.settings.preview:
+            self.statusBar().showMessage(f"Preview in {result.wall_time_s * 1000:.0f} ms; "
+                                         "the full generation follows the release.", 4000)
+            return
         self.statusBar().showMessage(
             f"Generated {count} variation{'s' * (count != 1)} in {result.wall_time_s:.1f} s "
             f"(first step after {result.first_step_s:.2f} s).", 10000)

@@ -7,11 +7,12 @@ from __future__ import annotations
 from dataclasses import replace
 
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
-                               QListWidget, QPushButton, QSpinBox, QVBoxLayout, QWidget)
+                               QListWidget, QMessageBox, QPushButton, QSpinBox, QVBoxLayout, QWidget)
 
 from engine.objects import DEFAULT_SIZES, OBJECT_TYPES
 from engine.skeleton import JOINT_NAMES
-from engine.storyboard import MAX_SECONDS
+from engine.storyboard import MAX_SECONDS, SPANS, Storyboard
+from engine.takes import Take
 
 from . import commands as cmd
 from .document import OBJECT_PATH, OBJECT_SHAPES, Document
@@ -95,6 +96,8 @@ class PropertiesPanel(QWidget):
         self.variations = QSpinBox()
         self.variations.setRange(1, 8)
         self.variation = QComboBox()
+        self.take = QComboBox()
+        self.take.setToolTip("Every generation is a take, saved with the storyboard; pick one to see it again")
         form.addRow("Seed", self.seed)
         form.addRow("Steps", self.steps)
         form.addRow("Guidance", self.cfg)
@@ -104,6 +107,7 @@ class PropertiesPanel(QWidget):
         toggles.addWidget(self.steady)
         form.addRow(toggles)
         form.addRow("Variations", self.variations)
+        form.addRow("Take", self.take)
         form.addRow("Show", self.variation)
         layout.addWidget(box)
         layout.addStretch(1)
@@ -125,6 +129,7 @@ class PropertiesPanel(QWidget):
         for box in (self.use_energy, self.use_ctmc, self.steady):
             box.toggled.connect(self._apply_settings)
         self.variation.activated.connect(document.choose_variation)
+        self.take.activated.connect(document.choose_take)
 
         document.storyboardChanged.connect(self.refresh)
         document.selectionChanged.connect(self.refresh)
@@ -146,7 +151,7 @@ class PropertiesPanel(QWidget):
         doc, sb, sel = self._doc, self._doc.storyboard, self._doc.selection
         widgets = [self.frames, self.fps, self.agent, self.joint, self.object, self.object_type, *self.size,
                    self.contacts, self.seed, self.steps, self.cfg, self.use_energy, self.use_ctmc, self.steady,
-                   self.variations, self.variation]
+                   self.variations, self.variation, self.take]
         for w in widgets:
             w.blockSignals(True)
         self.fps.setValue(sb.fps)
@@ -186,14 +191,25 @@ class PropertiesPanel(QWidget):
         self.variation.addItems([f"Variation {i + 1} of {len(doc.clips)}" for i in range(len(doc.clips))])
         self.variation.setCurrentIndex(doc.variation if doc.clips else -1)
         self.variation.setEnabled(len(doc.clips) > 1)
+        self.take.clear()
+        self.take.addItems([_take_label(i, t) for i, t in enumerate(doc.takes)])
+        self.take.setCurrentIndex(doc.take_index)
+        self.take.setEnabled(len(doc.takes) > 1)
         for w in widgets:
             w.blockSignals(False)
 
     # ---- widgets -> document -------------------------------------------------------------------
     def _apply_length(self):
-        sb = self._doc.storyboard
-        if self.frames.value() != sb.length:
-            self._doc.undo_stack.push(cmd.SetTiming(self._doc, sb.fps, self.frames.value()))
+        sb, length = self._doc.storyboard, self.frames.value()
+        if length == sb.length:
+            return
+        lost = work_cut_off(sb, length)
+        if lost and QMessageBox.question(
+                self, "Shorten the clip", f"Shortening the clip to {length} frames {lost}. Shorten it? "
+                "(Edit > Undo brings it all back.)", QMessageBox.Yes | QMessageBox.No, QMessageBox.No) != QMessageBox.Yes:
+            self.frames.setValue(sb.length)
+            return
+        self._doc.undo_stack.push(cmd.SetTiming(self._doc, sb.fps, length))
 
     def _apply_fps(self):
         fps = round(self.fps.value(), 2)
@@ -227,3 +243,28 @@ class PropertiesPanel(QWidget):
 def _describe_contact(c) -> str:
     held = f"{c.object} anchor {c.anchor}" if c.object is not None else f"{c.other_agent} {c.other_hand} hand"
     return f"{c.agent} {c.hand} hand \u2192 {held}   [{c.start}\u2013{c.end}]"
+
+
+def work_cut_off(sb: Storyboard, length: int) -> str:
+    """What shortening `sb` to `length` frames would delete or cut, in words ('' when nothing):
+    'deletes 2 keyposes and 1 contact and cuts 1 path short'."""
+    cut = sb.cut_to(length)
+    names = {"keyposes": "keypose", "object_keys": "object key", "trajectories": "path", "object_paths": "object path",
+             "contacts": "contact"}
+    deleted = [f"{n} {names[field]}{'s' * (n > 1)}" for field in names
+               for n in [len(getattr(sb, field)) - len(getattr(cut, field))] if n]
+    shortened = sum(1 for field in SPANS for before, after in zip(
+        [x for x in getattr(sb, field) if x.start < length], getattr(cut, field)) if after.end < before.end)
+    words = [f"deletes {_listed(deleted)}"] if deleted else []
+    words += [f"cuts {shortened} span{'s' * (shortened > 1)} short"] if shortened else []
+    return ", and ".join(words)
+
+
+def _listed(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _take_label(index: int, take: Take) -> str:
+    """'Take 3: seed 5, 30 steps, 14:02'."""
+    steps = take.settings.get("steps")
+    return f"Take {index + 1}: seed {take.seed}" + (f", {steps} steps" if steps else "") + f", {take.created[-8:-3]}"

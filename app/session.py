@@ -2,10 +2,12 @@
 
 The session owns what a generation is while it runs: the storyboard it was asked for (a copy:
 edits during the run do not reach it), the settings, the newest streamed step and its preview,
-and the runner thread. When it ends, the result goes into the document (`Document.set_result`),
+and the runner thread. When it ends, the result goes into the document as a take
+(`Document.add_take`; a preview's as motion shown, `Document.set_result`),
 which keeps it; the session then says whether that result is outdated by edits since.
 
     session.start(settings) -> str | None    None when started, else why not (one line)
+    session.preview(storyboard, settings)    a preview of a dragged copy of the storyboard
     session.cancel()
     session.running, session.latest (StepEvent | None), session.outdated (bool)
 Signals: runningChanged(bool), stepped(StepEvent), finished(GenerationResult), failed(str),
@@ -14,15 +16,17 @@ cancelled(), outdatedChanged(bool).
 from __future__ import annotations
 
 import copy
+from dataclasses import asdict, replace
 from collections.abc import Callable
 
 from PySide6.QtCore import QObject, Signal
 
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard, StoryboardError
+from engine.takes import Take
 
 from .document import Document
-from .generation import GenerationSettings, StepStream
+from .generation import MACHINE_SETTINGS, GenerationSettings, StepStream
 from .worker import GenerationRunner
 
 
@@ -43,6 +47,7 @@ class GenerationSession(QObject):
         self.storyboard: Storyboard | None = None     # what the running (or last) generation was asked for
         self.settings: GenerationSettings | None = None
         self.latest: StepEvent | None = None          # the newest streamed step while running
+        self._pending: tuple[Storyboard, GenerationSettings] | None = None   # to run when the current ends
         self._outdated = False
         self._runner.runningChanged.connect(self.runningChanged)
         self._runner.step.connect(self._on_step)
@@ -61,25 +66,42 @@ class GenerationSession(QObject):
         return self._outdated
 
     def start(self, settings: GenerationSettings) -> str | None:
-        """Generate the document's storyboard as it is now; None when started, else why not."""
-        if self.running:
+        """Generate the document's storyboard as it is now; None when started (or queued behind
+        a preview, which it cancels), else why not."""
+        if self.running and not self.settings.preview:
             return "A generation is running: wait for it, or press Esc to cancel it."
         storyboard = copy.deepcopy(self._doc.storyboard)
-        try:
-            storyboard.validate()
-        except StoryboardError as e:
-            return f"The storyboard cannot be generated from: {e}"
-        if not (storyboard.keyposes or storyboard.trajectories or storyboard.contacts or storyboard.object_keys):
-            # The model would make up two people who walk into each other.
-            return ("Nothing to generate from yet: place a keypose (K), draw a path (T) or add a contact (C) "
-                    "for the people to follow.")
+        problem = _why_not(storyboard)
+        if problem is None:
+            self._queue(storyboard, settings)
+        return problem
+
+    def preview(self, storyboard: Storyboard, settings: GenerationSettings) -> None:
+        """A preview of `storyboard` (the document's, with a drag in progress applied): the
+        running preview is stale and cancelled, and of the requests that arrive meanwhile only
+        the newest runs. A full generation running is cancelled too: the drag changes what it was
+        asked. A storyboard that cannot be generated is skipped (the release will say why)."""
+        if _why_not(storyboard) is None:
+            self._queue(copy.deepcopy(storyboard), replace(settings, preview=True))
+
+    def cancel(self) -> None:
+        self._pending = None
+        self._runner.cancel()
+
+    def _queue(self, storyboard: Storyboard, settings: GenerationSettings) -> None:
+        self._pending = (storyboard, settings)
+        if self.running:
+            self._runner.cancel()           # its end starts the pending request
+        else:
+            self._start_pending()
+
+    def _start_pending(self) -> None:
+        if self._pending is None:
+            return
+        (storyboard, settings), self._pending = self._pending, None
         self.storyboard, self.settings, self.latest = storyboard, settings, None
         generate = self.generate
         self._runner.start(lambda: generate(storyboard, settings))
-        return None
-
-    def cancel(self) -> None:
-        self._runner.cancel()
 
     def shutdown(self) -> None:
         """Cancel and join the thread (window close, tests)."""
@@ -92,19 +114,40 @@ class GenerationSession(QObject):
     def _on_finished(self, result: GenerationResult) -> None:
         clips = list(result.clips)
         self.latest = None
-        self._doc.set_result(clips, clips[0].phase if clips else None, source=self.storyboard)
+        if self.settings.preview or not clips:
+            self._doc.set_result(clips, clips[0].phase if clips else None, source=self.storyboard)
+        else:
+            kept = {k: v for k, v in asdict(self.settings).items() if k not in MACHINE_SETTINGS}
+            self._doc.add_take(Take(clips, self.settings.seed, kept, self.storyboard.to_json()))
         self.finished.emit(result)
+        self._start_pending()
 
     def _on_failed(self, message: str) -> None:
         self.latest = None
         self.failed.emit(message)
+        self._start_pending()
 
     def _on_cancelled(self) -> None:
         self.latest = None
-        self.cancelled.emit()
+        if self._pending is None:       # cancelled by the person, not replaced by a newer request
+            self.cancelled.emit()
+        self._start_pending()
 
     def _update_outdated(self) -> None:
         outdated = self._doc.result_outdated
         if outdated != self._outdated:
             self._outdated = outdated
             self.outdatedChanged.emit(outdated)
+
+
+def _why_not(storyboard: Storyboard) -> str | None:
+    """Why a storyboard cannot be generated (one line), or None."""
+    try:
+        storyboard.validate()
+    except StoryboardError as e:
+        return f"The storyboard cannot be generated from: {e}"
+    if not (storyboard.keyposes or storyboard.trajectories or storyboard.contacts or storyboard.object_keys):
+        # The model would make up two people who walk into each other.
+        return ("Nothing to generate from yet: place a keypose (K), draw a path (T) or add a contact (C) "
+                "for the people to follow.")
+    return None

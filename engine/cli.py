@@ -82,7 +82,7 @@ def cmd_train(args) -> int:
     from .training.command import TrainError, train_command
     try:
         train_command(args.stage, args.config, args.data, args.real, args.steps, args.resume, args.runs,
-                      args.threads)
+                      args.threads, args.from_bundle)
     except TrainError as e:
         raise UserError(str(e)) from None
     return 0
@@ -104,7 +104,8 @@ def _sampler_config(args):
     try:
         return sampler_config(method="student" if args.method == "retrieval" else args.method, steps=args.steps,
                               seed=args.seed, cfg=args.cfg, variations=args.variations, energy=not args.no_energy,
-                              ctmc=not args.no_ctmc, finish=not args.no_finish, steady=args.steady)
+                              ctmc=not args.no_ctmc, finish=not args.no_finish, steady=args.steady,
+                              preview=getattr(args, "preview", False))
     except SamplerError as e:
         raise UserError(str(e)) from None
 
@@ -191,7 +192,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("train", parents=[computes],
                        help="train a model stage (or all) on clip folders; torchrun for several GPUs")
     s.add_argument("stage", choices=["vqvae", "encoders", "teacher", "student1", "student2", "potential",
-                                     "ctmc", "surrogate", "all"])
+                                     "ctmc", "surrogate", "preview", "all"])
     s.add_argument("--config", choices=["default", "large"], default="default",
                    help="default: 2-core CPU sizes; large: GPU sizes and paper settings")
     s.add_argument("--data", nargs="+", metavar="DIR", help="folders of synthesized clip NPZs")
@@ -199,6 +200,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--steps", type=int, help="steps per stage (overrides the config)")
     s.add_argument("--resume", action="store_true", help="continue from runs/STAGE/checkpoint.pt")
     s.add_argument("--runs", default="runs", help="output root (default runs/)")
+    s.add_argument("--from-bundle", metavar="BUNDLE.pt",
+                   help="take the earlier stages a stage needs from this bundle where runs/ lacks them "
+                        "(e.g. train the preview on the shipped bundle)")
     s.set_defaults(func=cmd_train)
 
     s = sub.add_parser("bundle", help="collect trained stages into a model bundle with its model card")
@@ -221,6 +225,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-ctmc", action="store_true", help="no CTMC phase planning (ablation)")
     s.add_argument("--no-finish", action="store_true",
                    help="keep the sampler's raw decode (no finishing pass: keyposes, paths, contacts, feet)")
+    s.add_argument("--preview", action="store_true",
+                   help="the fast path an artist sees while dragging: the preview student's few steps, "
+                        "energy on the last only, keyposes and paths finished (not feet or contacts)")
     s.add_argument("--steady", action="store_true",
                    help="damped guidance: a small stroke edit changes the motion a little, not into a new "
                         "take (feet skate more)")

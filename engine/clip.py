@@ -97,25 +97,22 @@ class MotionClip:
                 kw[name] = kw[name][start:stop]
         return MotionClip(**kw)
 
-    def save(self, path: str | Path) -> None:
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The clip as named arrays (what its NPZ file holds)."""
         arrays = {"format_version": np.int32(FORMAT_VERSION), "fps": np.float32(self.fps),
                   "scenario": np.str_(self.scenario)}
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name not in arrays and v is not None:
                 arrays[f.name] = np.asarray(v)
-        with atomic_write(path) as f:
-            np.savez_compressed(f, **arrays)
+        return arrays
 
     @classmethod
-    def load(cls, path: str | Path) -> "MotionClip":
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                data = {k: z[k] for k in z.files}
-        except Exception as e:  # zipfile, OSError, ValueError: all mean "not a clip"
-            raise ClipError(f"{path}: not a readable motion clip NPZ ({e})") from None
+    def from_arrays(cls, data: dict[str, np.ndarray], where: str) -> "MotionClip":
+        """A clip from to_arrays' arrays; ClipError naming `where` for anything wrong."""
+        data = dict(data)
         for key in ("fps", "joints", "rot6d"):
-            _check(key in data, f"{path}: missing required array '{key}'")
+            _check(key in data, f"{where}: missing required array '{key}'")
         try:
             version = int(data.pop("format_version", FORMAT_VERSION))
             _check(version <= FORMAT_VERSION, f"clip format version {version} is newer than this program")
@@ -125,7 +122,20 @@ class MotionClip:
             kw["scenario"] = str(kw.get("scenario", ""))
             return cls(**kw)
         except (ClipError, TypeError, ValueError) as e:   # a wrong shape, type or value in a readable file
-            raise ClipError(f"{path}: {str(e).splitlines()[0] if str(e) else type(e).__name__}") from None
+            raise ClipError(f"{where}: {str(e).splitlines()[0] if str(e) else type(e).__name__}") from None
+
+    def save(self, path: str | Path) -> None:
+        with atomic_write(path) as f:
+            np.savez_compressed(f, **self.to_arrays())
+
+    @classmethod
+    def load(cls, path: str | Path) -> "MotionClip":
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+        except Exception as e:  # zipfile, OSError, ValueError: all mean "not a clip"
+            raise ClipError(f"{path}: not a readable motion clip NPZ ({e})") from None
+        return cls.from_arrays(data, str(path))
 
 
 def _check(ok: bool, message: str) -> None:

@@ -35,6 +35,10 @@ def percent(value) -> str:
     return "-" if value is None else f"{100 * value:+.0f}%"
 
 
+SPEEDUP_TARGETS = {"ours": 20.0, "ours_preview": 100.0}   # x the DDPM-1000 teacher's wall time
+PREVIEW_MAX_S = 0.15
+
+
 def ratio(value, base) -> str:
     if value is None or not base:
         return "-"
@@ -152,6 +156,14 @@ def _speed_section(speed: dict, labels: dict) -> str:
            f"- Peak memory: {speed.get('memory', '')}.", "",
            table(["Method", "wall s", "x Ours", "first step s", "x Ours", "network evals", "x Ours",
                   "peak RSS MiB", "repeats"], rows)]
+    ddpm = per.get("teacher_ddpm", {}).get("wall_s")
+    if ddpm:   # the paper's headline: the student against its 1000-step teacher, same run
+        out += ["", "Speed-up over the DDPM-1000 teacher (its wall time / each method's; issue 20's targets: "
+                f"Ours {SPEEDUP_TARGETS['ours']:.0f}x, preview {SPEEDUP_TARGETS['ours_preview']:.0f}x and under "
+                f"{PREVIEW_MAX_S} s): " + ", ".join(
+                    f"{labels[k]} {ddpm / f['wall_s']:.1f}x" + (
+                        f" ({'met' if ddpm / f['wall_s'] >= SPEEDUP_TARGETS[k] else 'not met'})" if k in SPEEDUP_TARGETS else "")
+                    for k, f in _in_order(per, labels) if k != "teacher_ddpm" and f.get("wall_s"))]
     busy = speed.get("busy")
     if busy:
         rows = [[name, fmt(busy[key]["wall_s"]), fmt(busy[key]["first_step_s"]), str(busy[key]["repeats"])]

@@ -18,7 +18,7 @@ from ..clip import MotionClip
 from ..generate import run_generation
 from ..metrics import adherence, brier_score, contact_f1, diversity, expected_calibration_error
 from ..request import Request
-from ..sampling.config import STEADY_GUIDANCE_RATE, SamplerConfig
+from ..sampling.config import STEADY_GUIDANCE_RATE, SamplerConfig, sampler_config
 from ..sampling.sampler import sample
 from ..storyboard import Storyboard
 from .animator import animator_metrics
@@ -53,7 +53,12 @@ ABLATIONS = (
     Method("wo_temporal_bias", "w/o temporal bias", SamplerConfig(steps=30, use_temporal_bias=False)),
     Method("trajectory_only", "trajectory-only", SamplerConfig(steps=30, trajectory_only=True)),
 )
-ALL_METHODS = (OURS, STEADY, TEACHER_DDPM, TEACHER_DDIM, TEACHER_DDPM_FINISHED, TEACHER_DDIM_FINISHED,
+# The few-step preview student: as an artist sees it while dragging, and with the full guidance
+# and finishing (where quality holds, the way to a full generation at 20x the teacher).
+PREVIEW = Method("ours_preview", "Ours, preview", sampler_config(preview=True))
+FEW_STEP = Method("ours_few_step", "Ours, preview student + full guidance and finishing",
+                  replace(sampler_config(), few_step=True, ctmc_every=1))
+ALL_METHODS = (OURS, PREVIEW, FEW_STEP, STEADY, TEACHER_DDPM, TEACHER_DDIM, TEACHER_DDPM_FINISHED, TEACHER_DDIM_FINISHED,
                UNTRAINED_FINISHED, RETRIEV_ADAPT) + ABLATIONS
 
 

@@ -6,6 +6,7 @@ File: a torch.save'd dict (weights_only-safe) with
   config      ModelConfig as nested plain dicts
   metadata    free-form dict (stages trained, steps, data, date, metrics)
   weights     {part name: half-precision state dict}; parts absent from the file stay untrained
+              (only OPTIONAL_PARTS may be absent from a trained bundle)
 `load_default()` loads resources/models/default.pt, or when none is shipped returns a freshly
 initialised small bundle flagged trained=False, so the app can stream (noise-like) motion
 until trained weights land.
@@ -35,7 +36,9 @@ from .vqvae import EntityVQVAE, VQVAEConfig
 BUNDLE_FORMAT = "sketch2colab-bundle"
 BUNDLE_VERSION = 1
 DEFAULT_PATH = Path(__file__).resolve().parents[2] / "resources" / "models" / "default.pt"
-PARTS = ("vqvae", "conditioner", "latent_head", "teacher", "student", "planner", "potential", "surrogate")
+PARTS = ("vqvae", "conditioner", "latent_head", "teacher", "student", "planner", "potential", "surrogate", "preview")
+# Parts a trained bundle may lack (bundles made before them): `has_part` says whether one is trained.
+OPTIONAL_PARTS = ("preview",)
 
 
 class BundleError(ValueError):
@@ -90,6 +93,7 @@ def build_parts(cfg: ModelConfig) -> dict[str, nn.Module]:
         "planner": PhasePlanner(cfg.planner),
         "potential": LatentPotential(cfg.potential),
         "surrogate": JacobianSurrogate(cfg.surrogate),
+        "preview": RectifiedFlowStudent(TemporalUNet(cfg.student_unet)),
     }
 
 
@@ -106,6 +110,10 @@ class ModelBundle:
             return parts[name]
         raise AttributeError(name)
 
+    def has_part(self, name: str) -> bool:
+        """Whether `name` holds trained weights (an optional part may be absent from the file)."""
+        return self.trained and name not in self.metadata.get("absent_parts", ())
+
     def eval(self) -> "ModelBundle":
         for m in self.parts.values():
             m.eval().requires_grad_(False)
@@ -115,9 +123,11 @@ class ModelBundle:
         """Half-precision weights (buffers that count things stay as they are), atomically."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
+        absent = set(self.metadata.get("absent_parts", ()))
         weights = {name: {k: v.half() if v.is_floating_point() else v for k, v in m.state_dict().items()}
-                   for name, m in self.parts.items()}
-        meta = {**self.metadata, "trained": self.trained, "saved_at": time.strftime("%Y-%m-%d %H:%M:%S")}
+                   for name, m in self.parts.items() if name not in absent}
+        meta = {**{k: v for k, v in self.metadata.items() if k != "absent_parts"},   # found again on load
+                "trained": self.trained, "saved_at": time.strftime("%Y-%m-%d %H:%M:%S")}
         with atomic_write(path) as f:
             torch.save({"format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "config": self.config.to_dict(),
                         "metadata": meta, "weights": weights, "weights_sha256": weights_digest(weights)}, f)
@@ -171,8 +181,9 @@ def load_bundle(path: str | Path) -> ModelBundle:
         parts = build_parts(cfg)
     except Exception as e:
         raise BundleError(f"{path}: bundle config does not fit these models ({_first_line(e)})") from None
-    if meta.get("trained") and set(parts) - set(weights):
-        missing = ", ".join(sorted(set(parts) - set(weights)))
+    absent = sorted(set(parts) - set(weights))
+    if meta.get("trained") and set(absent) - set(OPTIONAL_PARTS):
+        missing = ", ".join(sorted(set(absent) - set(OPTIONAL_PARTS)))
         raise BundleError(f"{path}: marked trained but has no weights for {missing}")
     for name, state in weights.items():
         if name not in parts:
@@ -185,7 +196,7 @@ def load_bundle(path: str | Path) -> ModelBundle:
         bad = [k for k, v in state.items() if v.is_floating_point() and not torch.isfinite(v).all()]
         if bad:
             raise BundleError(f"{path}: part {name!r} has non-finite weights in {bad[0]}")
-    meta = dict(meta)
+    meta = {**meta, "absent_parts": absent}
     return ModelBundle(cfg, parts, trained=bool(meta.get("trained", False)), metadata=meta).eval()
 
 

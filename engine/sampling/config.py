@@ -3,12 +3,13 @@ person's choices: the command line, the app's settings and the demo call `sample
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 METHODS = ("student", "teacher-ddpm", "teacher-ddim")
 # guidance_max_rate of "steady" generation (the app's Steady checkbox, generate --steady);
 # BENCHMARKS.md compares it with the default ("Ours, steady"; stroke-nudge stability).
 STEADY_GUIDANCE_RATE = 5.0
+PREVIEW_REFINE_STEPS = 0   # energy steps on a preview's final latent after its last step's one
 
 
 class SamplerError(ValueError):
@@ -18,6 +19,8 @@ class SamplerError(ValueError):
 @dataclass
 class SamplerConfig:
     steps: int = 30                 # Heun steps (student) or DDIM steps (teacher-ddim)
+    few_step: bool = False          # the distilled preview student's PREVIEW_STEPS jumps instead
+                                    # of the student's Heun steps (models/preview.py)
     seed: int = 0
     cfg: float = 1.6                # classifier-free guidance weight
     method: str = "student"
@@ -41,6 +44,7 @@ class SamplerConfig:
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
     langevin_step_size: float = 1e-3
     finish: bool = True             # engine.finishing on the final clips ("w/o finishing")
+    light_finish: bool = False      # only keyposes and paths (output.PREVIEW_FINISH), for previews
     check_surrogate: bool = False   # also take the exact gradient through the decoder and report
                                     # its cosine to B_rho's as the energy "surrogate_cosine" (slower)
     threads: int | None = None      # torch threads (None: engine.cpu chooses from the free cores, and
@@ -57,11 +61,19 @@ class SamplerConfig:
 
 def sampler_config(*, method: str = "student", steps: int = 30, seed: int = 0, cfg: float = 1.6,
                    variations: int = 1, energy: bool = True, ctmc: bool = True, finish: bool = True,
-                   steady: bool = False, threads: int | None = None, reserve_cores: float = 0.0) -> SamplerConfig:
-    """A SamplerConfig from the choices a person makes (checked: SamplerError on a bad one)."""
+                   steady: bool = False, preview: bool = False, threads: int | None = None,
+                   reserve_cores: float = 0.0) -> SamplerConfig:
+    """A SamplerConfig from the choices a person makes (checked: SamplerError on a bad one).
+    `preview`: the fast path for motion that follows the pointer: the preview student's few
+    jumps, energy guidance only on the final latent, light finishing (steps and cfg unused)."""
     config = SamplerConfig(steps=steps, seed=seed, cfg=cfg, method=method, variations=variations,
                            use_energy=energy, use_ctmc=ctmc, finish=finish,
                            guidance_max_rate=STEADY_GUIDANCE_RATE if steady else None,
                            threads=threads, reserve_cores=reserve_cores)
+    if preview:
+        if method != "student":
+            raise SamplerError("a preview is the student's; it has no teacher method")
+        config = replace(config, few_step=True, ctmc_every=2, guidance_start=0.0, final_refine_steps=PREVIEW_REFINE_STEPS,
+                         light_finish=True)
     config.check()
     return config

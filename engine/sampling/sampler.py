@@ -13,6 +13,9 @@ This module only orchestrates; each part has its own home:
     output.py            decoding, clips at the storyboard's rate, finishing
     the bundle's planner the CTMC occupancy, re-planned here and passed to the field and the energies
 
+Preview (few_step): the preview student's PREVIEW_STEPS jumps, one conditional evaluation each
+(guidance distilled into it), re-planned after every jump; otherwise as below.
+
 Student (default): z_1 ~ N(0, I); a guided Heun ODE from t = 1 (noise) to t = 0 (data) on the
 rectified-flow student, classifier-free guided (weight `cfg`, conditional and unconditional
 passes in one batch), its S = 3 phase sub-fields mixed by the CTMC occupancy, re-planned every
@@ -33,8 +36,10 @@ from typing import Generator, Protocol
 import torch
 
 from ..cpu import ThreadBudget
+from ..models.preview import preview_times
 from ..request import Request
 from .cfg import ClassifierFreeGuidance
+from .config import SamplerError
 from .energies import EnergyContext
 from .events import GenerationResult, StepEvent
 from .guidance import EnergyGuidance
@@ -51,6 +56,10 @@ class Bundle(Protocol):
     conditioner: torch.nn.Module    # .encode(controls, t_lat, v) -> SketchEncoding
     latent_head: torch.nn.Module    # f_gamma
     student: torch.nn.Module        # RectifiedFlowStudent
+    preview: torch.nn.Module        # the few-step preview student (a RectifiedFlowStudent)
+    trained: bool
+
+    def has_part(self, name: str) -> bool: ...
     teacher: torch.nn.Module        # DiffusionTeacher
     planner: torch.nn.Module        # PhasePlanner
     surrogate: torch.nn.Module      # JacobianSurrogate
@@ -58,6 +67,8 @@ class Bundle(Protocol):
 
 def sample(bundle: Bundle, request: Request) -> Generator[StepEvent, None, GenerationResult]:
     config = request.config
+    if config.few_step and bundle.trained and not bundle.has_part("preview"):
+        raise SamplerError("this model bundle has no preview student (train it: sketch2colab train preview)")
     threads = ThreadBudget(config.threads, config.reserve_cores)
     threads.adjust()
     run = _Run(bundle, request)
@@ -125,18 +136,20 @@ class _Run:
         return GenerationResult(clips=clips, wall_time_s=time.perf_counter() - self.start,
                                 first_step_s=self.first_step or 0.0, network_evals=self.evals)
 
-    # ---- student: guided Heun ODE ------------------------------------------------------------
+    # ---- student: guided Heun ODE, or the preview student's jumps ------------------------------
     def _velocity_field(self, entity_pos: torch.Tensor | None):
-        """The CFG-guided student velocity (z, t) -> v at the current occupancy, its sub-fields
-        mixed by it (uniform before the first plan and without CTMC); one network evaluation per
-        call (cond and uncond as one batch, so the occupancy is repeated to match)."""
+        """The student velocity (z, t) -> v at the current occupancy, its sub-fields mixed by it
+        (uniform before the first plan and without CTMC); one network evaluation per call. The
+        student is CFG-guided (cond and uncond as one batch, so the occupancy is repeated to
+        match); the preview student has the guidance distilled in (one conditional pass)."""
         occupancy = self.occupancy
+        network = self.bundle.preview if self.cfg.few_step else self.bundle.student
 
         def student(z, time, cond, pos):
             occ = None if occupancy is None else occupancy.repeat(z.shape[0] // occupancy.shape[0], 1, 1)
-            return self.bundle.student.velocity(z, time, cond, pos, occ)
+            return network.velocity(z, time, cond, pos, occ)
 
-        guided = ClassifierFreeGuidance(student, self.cfg.cfg)
+        guided = ClassifierFreeGuidance(student, 1.0 if self.cfg.few_step else self.cfg.cfg)
 
         def field(z: torch.Tensor, t: float) -> torch.Tensor:
             self.evals += 1
@@ -148,13 +161,20 @@ class _Run:
     def student(self) -> Generator[StepEvent, None, GenerationResult]:
         cfg, guidance = self.cfg, self.guidance
         z = torch.randn(self.latent_shape, generator=self.generator)
-        ts = flow_times(cfg.steps)
+        ts = preview_times() if cfg.few_step else flow_times(cfg.steps)
+        steps = len(ts) - 1
         entity_pos, z0 = None, z
-        for i in range(cfg.steps):
+        for i in range(steps):
             t, t_next = ts[i], ts[i + 1]
-            z_next, v_end = heun_step(self._velocity_field(entity_pos), z, t, t_next)
-            z0 = flow_clean_estimate(z_next, v_end, t_next)
-            noise = (z_next - (1 - t_next) * z0) / max(t_next, 1e-8)
+            field = self._velocity_field(entity_pos)
+            if cfg.few_step:         # one jump: the clean estimate and the noise it came from
+                v = field(z, t)
+                z0 = flow_clean_estimate(z, v, t)
+                noise = z0 + v
+            else:
+                z_next, v_end = heun_step(field, z, t, t_next)
+                z0 = flow_clean_estimate(z_next, v_end, t_next)
+                noise = (z_next - (1 - t_next) * z0) / max(t_next, 1e-8)
             if cfg.use_ctmc and i % cfg.ctmc_every == 0:
                 self._plan(z0)
             energies = {}
@@ -163,7 +183,7 @@ class _Run:
                                               cfg.guidance_max_rate)
             z = flow_renoise(z0, noise, t_next)
             entity_pos = self.bundle.vqvae.decode_lowres(z0)
-            yield self._event(i, cfg.steps, t_next, z, z0, energies)
+            yield self._event(i, steps, t_next, z, z0, energies)
         if guidance.active:
             z0, _ = guidance.guide(z0, 0.0, cfg.final_refine_steps, self.occupancy)
         z0 = self._langevin(z0)

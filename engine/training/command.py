@@ -18,7 +18,7 @@ class TrainError(ValueError):
 
 def train_command(stage: str, config: str = "default", data: list[str] | None = None,
                   real: list[str] | None = None, steps: int | None = None, resume: bool = False,
-                  runs: str = "runs", threads: int | None = None) -> dict:
+                  runs: str = "runs", threads: int | None = None, from_bundle: str | None = None) -> dict:
     from ..dataset import DatasetConfig, StoryboardWindows, split_files
     cfg = CONFIGS[config]()
     if steps is not None:
@@ -41,6 +41,13 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
     dataset = StoryboardWindows(files, DatasetConfig(seed=cfg.seed))
     if len(dataset) == 0:
         raise TrainError("the clip folders hold no clip long enough for a training window")
+    if from_bundle is not None:
+        from ..models.bundle import BundleError, load_bundle
+        from .export import runs_from_bundle
+        try:
+            runs_from_bundle(load_bundle(from_bundle), runs)
+        except BundleError as e:
+            raise TrainError(str(e)) from None
     joined = init_distributed_from_env()
     try:
         results = train(stage, cfg, dataset, runs=runs, resume=resume)

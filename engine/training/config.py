@@ -5,7 +5,13 @@ from dataclasses import dataclass, field
 
 from ..models.bundle import ModelConfig
 
-STAGES = ("vqvae", "encoders", "teacher", "student1", "potential", "ctmc", "surrogate", "student2")
+STAGES = ("vqvae", "encoders", "teacher", "student1", "potential", "ctmc", "surrogate", "student2", "preview")
+# The parts each stage's final.pt holds (later stages win where two hold one).
+STAGE_PARTS = {"vqvae": ("vqvae",), "encoders": ("conditioner",), "teacher": ("teacher", "conditioner"),
+               "student1": ("student",), "potential": ("potential",), "ctmc": ("planner",),
+               "surrogate": ("surrogate",), "student2": ("student", "planner", "latent_head"),
+               "preview": ("preview",)}
+OPTIONAL_STAGES = {"preview": "preview"}     # stage -> the optional bundle part it trains
 
 
 @dataclass
@@ -25,7 +31,7 @@ class TrainConfig:
     surrogate_init_latents: int = 8  # data latents whose decoder Jacobians initialise B_rho
     model: ModelConfig = field(default_factory=ModelConfig.default)
     stage_lr: dict = field(default_factory=lambda: {"vqvae": 5e-4, "student1": 1e-4, "student2": 1e-4,
-                                                    "surrogate": 1e-5})
+                                                    "surrogate": 1e-5, "preview": 5e-5})
     stage_steps: dict = field(default_factory=dict)   # per-stage overrides of `steps` (stage "all")
 
     def lr_for(self, stage: str) -> float:

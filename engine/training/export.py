@@ -5,7 +5,7 @@ from pathlib import Path
 
 from ..models.bundle import ModelBundle, ModelConfig, build_parts
 from . import checkpoint
-from .config import STAGES
+from .config import OPTIONAL_STAGES, STAGE_PARTS, STAGES
 
 
 def bundle_from_runs(runs: str | Path, config: ModelConfig) -> ModelBundle:
@@ -23,5 +23,24 @@ def bundle_from_runs(runs: str | Path, config: ModelConfig) -> ModelBundle:
             parts[name].load_state_dict(state)
         done.append(stage)
         metrics[stage] = final.get("metrics", {})
-    return ModelBundle(config, parts, trained=len(done) == len(STAGES),
-                       metadata={"stages": done, "metrics": metrics}).eval()
+    absent = [name for stage, name in OPTIONAL_STAGES.items() if stage not in done]
+    required = [stage for stage in STAGES if stage not in OPTIONAL_STAGES]
+    return ModelBundle(config, parts, trained=all(stage in done for stage in required),
+                       metadata={"stages": done, "metrics": metrics, "absent_parts": absent}).eval()
+
+
+def runs_from_bundle(bundle: ModelBundle, runs: str | Path) -> list[str]:
+    """Write runs/<stage>/final.pt for each stage the bundle's parts came from and runs/ lacks, so
+    that a later stage (the preview) can train on a shipped bundle whose runs are gone. -> the
+    stages written."""
+    written = []
+    for stage, names in STAGE_PARTS.items():
+        path = Path(runs) / stage / "final.pt"
+        if path.exists() or not all(bundle.has_part(n) for n in names):
+            continue
+        checkpoint.save_atomic({"parts": {n: {k: v.float() if v.is_floating_point() else v
+                                              for k, v in bundle.parts[n].state_dict().items()} for n in names},
+                                "metrics": bundle.metadata.get("metrics", {}).get(stage, {}),
+                                "model_config": bundle.config.to_dict(), "from_bundle": True}, path)
+        written.append(stage)
+    return written

@@ -10,6 +10,8 @@ Order and dependencies:
   ctmc       (vqvae)           -> phase planner: L_CTMC on ground-truth motion features
   surrogate  (vqvae)           -> B_rho: closed-form init from decoder Jacobians, then regression
   student2   (all above)       -> student + planner + latent head: the full objective (phase 2)
+  preview    (vqvae, teacher, student2) -> the few-step preview student, distilled from the
+                               student's guided ODE (models/preview.py); optional in a bundle
 """
 from __future__ import annotations
 
@@ -21,13 +23,16 @@ import torch
 from torch import nn
 from torch.utils.data import Dataset
 
-from ..models import alignment, ctmc, encoders, potential, student, surrogate
+from ..models import alignment, ctmc, encoders, potential, preview, student, surrogate
 from ..models.bundle import build_parts
 from ..models.vqvae import mean_joint_error
+from ..sampling.cfg import ClassifierFreeGuidance
+from ..sampling.config import SamplerConfig
 from . import checkpoint
 from .config import STAGES, TrainConfig
 
 LossFn = Callable[[dict, torch.Generator, int], dict]
+PREVIEW_CFG = SamplerConfig().cfg   # the guidance weight the preview bakes in: the sampler's default
 ENTITY_POS_DROP = 0.1   # share of steps trained without the entity-distance bias (first sampler step has none)
 
 
@@ -235,5 +240,33 @@ def _student2(parts, cfg, runs, dataset) -> StageTask:
                      frozen={"vqvae": vq, "teacher": teacher, "conditioner": cond, "potential": pot})
 
 
+def _preview(parts, cfg, runs, dataset) -> StageTask:
+    """The few-step preview student, distilled from the finished student's guided ODE."""
+    _frozen(parts, runs, "vqvae", ("vqvae",), "preview")
+    _frozen(parts, runs, "teacher", ("conditioner",), "preview")
+    _frozen(parts, runs, "student2", ("student", "planner"), "preview")
+    vq, cond, stu, planner, fast = (parts[n] for n in ("vqvae", "conditioner", "student", "planner", "preview"))
+    fast.load_state_dict(stu.state_dict())                 # the student is the best start
+
+    def field(z, t, c, pos, occ):
+        """The sampler's guided student (conditional and unconditional passes as one batch of 2B)."""
+        doubled = None if occ is None else occ.repeat(2, 1, 1)
+        return ClassifierFreeGuidance(lambda z2, t2, c2, p2: stu.velocity(z2, t2, c2, p2, doubled), PREVIEW_CFG)(
+            z, t, c, pos)
+
+    def loss(batch, g, step):
+        with torch.no_grad():
+            z0 = vq.encode(batch)
+            c = cond(batch, z0.shape[1], z0.shape[2])
+            occupancy = planner(z0, batch, batch["contact"]).occupancy
+            z1 = torch.randn(z0.shape, generator=g, device=z0.device)
+            states, positions = preview.reference_path(field, vq.decode_lowres, z1, c, occupancy)
+        return preview.preview_loss(fast, states, positions, c, occupancy)
+
+    return StageTask("preview", nn.ModuleDict({"preview": fast}), loss,
+                     frozen={"vqvae": vq, "conditioner": cond, "student": stu, "planner": planner})
+
+
 _BUILDERS = {"vqvae": _vqvae, "encoders": _encoders, "teacher": _teacher, "student1": _student1,
-             "potential": _potential, "ctmc": _ctmc, "surrogate": _surrogate, "student2": _student2}
+             "potential": _potential, "ctmc": _ctmc, "surrogate": _surrogate, "student2": _student2,
+             "preview": _preview}

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 import torch  # noqa: F401  as main() does: loaded before the window, so no generation pays for it
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer
+from PySide6.QtWidgets import QMessageBox
 
 from app import commands as cmd
 from app.autosave import Recovery
@@ -270,8 +271,10 @@ def test_the_steady_checkbox_reaches_the_sampler(make_window, monkeypatch):
     assert [c.guidance_max_rate for c in seen] == [STEADY_GUIDANCE_RATE, None]
 
 
-def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window):
-    """Typing a frame rate keeps every key at its time; a shorter length drops what lies past it."""
+def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window, dialogs):
+    """Typing a frame rate keeps every key at its time; a shorter length drops what lies past it,
+    once the artist has said yes to the question that says what goes."""
+    dialogs.answer = QMessageBox.Yes
     load_sample(window)
     doc, panel = window.doc, window.properties
     before = doc.storyboard.to_json()
@@ -286,6 +289,7 @@ def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window):
     qtbot.keyClicks(panel.frames, "60")
     qtbot.keyClick(panel.frames, Qt.Key_Return)
     assert doc.storyboard.length == 60 and doc.frame <= 59
+    assert "deletes 4 keyposes, 1 object key, 1 object path and 2 contacts, and cuts 2 spans short" in dialogs.questions[-1]
     assert all(k.frame < 60 for k in doc.storyboard.keyposes)
     assert all(t.end < 60 for t in doc.storyboard.trajectories) and panel.duration.text() == "2.00 s"
     doc.storyboard.validate()
@@ -367,3 +371,19 @@ def test_shortcuts_win_over_number_fields_but_not_over_typing(qtbot, window):
     qtbot.waitUntil(text.hasFocus)
     qtbot.keyClick(text, Qt.Key_E)
     assert text.text() == "e" and window.doc.tool == "keypose"
+
+
+def test_a_shortening_that_would_delete_work_asks_first(qtbot, window, dialogs):
+    dialogs.answer = QMessageBox.No
+    load_sample(window)
+    before = window.doc.storyboard.to_json()
+    panel = window.properties
+    panel.frames.selectAll()
+    qtbot.keyClicks(panel.frames, "50")
+    qtbot.keyClick(panel.frames, Qt.Key_Return)
+    assert len(dialogs.questions) == 1 and "deletes" in dialogs.questions[0]
+    assert window.doc.storyboard.to_json() == before and panel.frames.value() == 120
+    panel.frames.selectAll()                               # longer: nothing to lose, no question
+    qtbot.keyClicks(panel.frames, "140")
+    qtbot.keyClick(panel.frames, Qt.Key_Return)
+    assert window.doc.storyboard.length == 140 and len(dialogs.questions) == 1

@@ -1,5 +1,6 @@
 """The guided streaming sampler on a small untrained bundle: streaming, determinism,
 cancellation, variations, methods, guidance that works, and odd storyboards."""
+import copy
 from dataclasses import replace
 
 import numpy as np
@@ -7,10 +8,11 @@ import pytest
 import torch
 
 from engine.metrics import adherence
-from engine.models.bundle import ModelConfig, untrained_bundle
+from engine.models.bundle import ModelConfig, load_bundle, untrained_bundle
+from engine.models.preview import PREVIEW_STEPS
 from engine.models.teacher import VPSchedule
 from engine.request import Request
-from engine.sampling.config import SamplerConfig, SamplerError
+from engine.sampling.config import SamplerConfig, SamplerError, sampler_config
 from engine.sampling.sampler import sample as sample_request
 from engine.storyboard import Agent, Storyboard
 
@@ -190,3 +192,28 @@ def test_surrogate_check_reports_a_cosine_per_guided_step_and_changes_nothing(st
     assert len(cosines) == sum("total" in e.energies for e in plain_events) > 0
     assert all(-1.0 <= c <= 1.0 for c in cosines)
     assert np.array_equal(plain.clips[0].joints, checked.clips[0].joints)
+
+
+def test_a_preview_is_the_preview_students_few_jumps_one_evaluation_each(bundle, storyboard):
+    config = sampler_config(preview=True, seed=3)
+    events, result = drain(sample(bundle, storyboard, config))
+    assert [e.step for e in events] == list(range(PREVIEW_STEPS)) and events[-1].t == 0.0
+    assert result.network_evals == PREVIEW_STEPS            # guidance distilled: one pass per step
+    assert np.isfinite(result.clips[0].joints).all()
+    # The preview student is what runs: other weights in it, other motion.
+    other = copy.deepcopy(bundle)
+    with torch.no_grad():
+        for p in other.preview.parameters():
+            p.add_(0.05)
+    _, changed = drain(sample(other, storyboard, config))
+    assert not np.allclose(changed.clips[0].joints, result.clips[0].joints)
+
+
+def test_a_bundle_without_a_preview_student_says_so(storyboard, tmp_path):
+    trained = untrained_bundle()
+    trained.trained, trained.metadata = True, {"absent_parts": ["preview"]}
+    trained.save(tmp_path / "old.pt")
+    loaded = load_bundle(tmp_path / "old.pt")
+    assert loaded.has_part("student") and not loaded.has_part("preview")
+    with pytest.raises(SamplerError, match="no preview student"):
+        drain(sample(loaded, storyboard, sampler_config(preview=True)))

@@ -1,0 +1,61 @@
+"""Motion that follows the pointer: while a joint or an object is dragged, previews of the dragged
+storyboard regenerate on the preview student (engine.models.preview); on release the full
+generation follows.
+
+Pointer moves arrive far faster than previews finish (~0.1 s each here), so they are coalesced:
+the first move of a burst starts a short timer and, when it fires, the newest dragged storyboard
+goes to the session, which cancels a stale preview and runs only the newest request.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from PySide6.QtCore import QObject, QSettings, QTimer
+
+from engine.storyboard import Storyboard
+
+from .canvas import SketchCanvas
+from .generation import GenerationSettings
+from .session import GenerationSession
+
+ENABLED_KEY = "generation/live_preview"
+COALESCE_MS = 15     # moves within this long of the first of a burst become one preview
+
+
+class LivePreview(QObject):
+    def __init__(self, canvas: SketchCanvas, session: GenerationSession, settings: Callable[[], GenerationSettings],
+                 generate: Callable[[], None], preferences: QSettings, parent: QObject | None = None):
+        super().__init__(parent)
+        self._session, self._settings, self._generate, self._preferences = session, settings, generate, preferences
+        self.enabled = str(preferences.value(ENABLED_KEY, "true")).lower() == "true"
+        self._latest: Storyboard | None = None
+        self._previewed = False            # this drag has asked for a preview: its release generates
+        self._timer = QTimer(self)
+        self._timer.setSingleShot(True)
+        self._timer.setInterval(COALESCE_MS)
+        self._timer.timeout.connect(self._send)
+        canvas.dragged.connect(self._on_dragged)
+        canvas.dragEnded.connect(self._on_released)
+
+    def set_enabled(self, on: bool) -> None:
+        self.enabled = bool(on)
+        self._preferences.setValue(ENABLED_KEY, "true" if on else "false")
+
+    def _on_dragged(self, storyboard: Storyboard) -> None:
+        if not self.enabled:
+            return
+        self._latest = storyboard
+        if not self._timer.isActive():
+            self._timer.start()
+
+    def _send(self) -> None:
+        if self._latest is not None:
+            self._session.preview(self._latest, self._settings())
+            self._latest, self._previewed = None, True
+
+    def _on_released(self) -> None:
+        self._timer.stop()
+        self._latest = None
+        if self._previewed:
+            self._previewed = False
+            self._generate()

@@ -1,0 +1,79 @@
+"""Live preview: a joint dragged with real mouse events regenerates previews of the dragged
+storyboard (coalesced, the stale one cancelled, the newest shown), and the release runs the full
+generation of the storyboard as it now is."""
+import numpy as np
+from PySide6.QtCore import QPoint, Qt
+
+from app import commands as cmd
+from engine.skeleton import JOINT_INDEX
+
+from .fakes import FakeSampler, sample_storyboard
+
+WRIST = JOINT_INDEX["r_wrist"]
+
+
+class Recording(FakeSampler):
+    """A slow fake sampler that records what each run was asked for."""
+
+    def __init__(self):
+        super().__init__(delay_s=0.01)
+        self.asked = []             # (settings, the dragged wrist's point) per run started
+
+    def __call__(self, storyboard, settings):
+        self.asked.append((settings, cmd.find_keypose(storyboard, "A", 60).points[WRIST].copy()))
+        return super().__call__(storyboard, settings)
+
+
+def px(canvas, uv) -> QPoint:
+    x, y = canvas.to_px(uv)
+    return QPoint(round(x), round(y))
+
+
+def drag_wrist(qtbot, window, offsets, pause_ms=5) -> np.ndarray:
+    """Press on A's right wrist at frame 60 and move through `offsets` (metres), then rest;
+    the button stays down. -> where the pointer rests, in sketch metres."""
+    canvas = window.canvas
+    start = cmd.find_keypose(window.doc.storyboard, "A", 60).points[WRIST].copy()
+    qtbot.mousePress(canvas, Qt.LeftButton, pos=px(canvas, start))
+    for offset in offsets:
+        qtbot.mouseMove(canvas, px(canvas, start + offset))
+        qtbot.wait(pause_ms)
+    qtbot.wait(200)                  # the pointer rests: the newest preview must arrive
+    end = px(canvas, start + offsets[-1])
+    return canvas.to_uv(np.array([end.x(), end.y()], float))
+
+
+def test_dragging_a_joint_previews_it_and_the_release_generates(qtbot, make_window):
+    sampler = Recording()
+    window = make_window(generate=sampler)
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    window.doc.set_frame(60)
+    window.doc.set_tool("select")
+    before = cmd.find_keypose(window.doc.storyboard, "A", 60).points[WRIST].copy()
+    offsets = [np.array([0.01 * i, 0.004 * i]) for i in range(1, 31)]
+    resting = drag_wrist(qtbot, window, offsets)
+    previews = [point for settings, point in sampler.asked if settings.preview]
+    assert 1 <= len(previews) < len(offsets)                           # coalesced
+    assert np.allclose(previews[-1], resting)                          # the newest is the one shown
+    qtbot.waitUntil(lambda: not window.session.running, timeout=5000)
+    assert np.allclose(cmd.find_keypose(window.session.storyboard, "A", 60).points[WRIST], resting)
+    assert window.doc.clip is not None
+    assert np.allclose(cmd.find_keypose(window.doc.storyboard, "A", 60).points[WRIST], before)   # not yet an edit
+    canvas = window.canvas
+    qtbot.mouseRelease(canvas, Qt.LeftButton, pos=px(canvas, resting))
+    qtbot.waitUntil(lambda: not sampler.asked[-1][0].preview and not window.session.running, timeout=5000)
+    assert np.allclose(sampler.asked[-1][1], resting)                  # the full run has the edit
+    assert np.allclose(cmd.find_keypose(window.doc.storyboard, "A", 60).points[WRIST], resting)
+    assert not window.session.outdated
+
+
+def test_live_preview_can_be_switched_off(qtbot, make_window):
+    sampler = Recording()
+    window = make_window(generate=sampler)
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    window.doc.set_frame(60)
+    window.doc.set_tool("select")
+    window.act_live.trigger()
+    assert not window.live_preview.enabled
+    drag_wrist(qtbot, window, [np.array([0.05, 0.0]), np.array([0.1, 0.0])])
+    assert sampler.asked == []

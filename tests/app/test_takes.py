@@ -1,0 +1,50 @@
+"""Takes in the app: each generation is kept, one variation of it chosen, saved beside the
+storyboard and reopened without regenerating; earlier takes can be shown again."""
+from PySide6.QtCore import Qt
+
+from app.generation import GenerationSettings
+from engine.takes import takes_path
+
+from .fakes import FakeSampler, sample_storyboard
+
+
+def generate(qtbot, window, seed: int) -> None:
+    window.doc.set_settings(GenerationSettings(steps=3, seed=seed, variations=2))
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
+        window.generate()
+
+
+def test_takes_are_kept_saved_and_reopened(qtbot, make_window, tmp_path, dialogs):
+    sampler = FakeSampler()
+    window = make_window(generate=sampler)
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    generate(qtbot, window, seed=4)
+    generate(qtbot, window, seed=9)
+    doc, panel = window.doc, window.properties
+    assert [t.seed for t in doc.takes] == [4, 9] and doc.take_index == 1
+    assert panel.take.count() == 2 and panel.take.currentText().startswith("Take 2: seed 9")
+    # Keep the second variation of take 2, with the keyboard on the Show list.
+    panel.variation.setFocus()
+    qtbot.keyClick(panel.variation, Qt.Key_Down)
+    assert doc.variation == 1 and doc.takes[1].chosen == 1 and doc.dirty
+    path = tmp_path / "handoff.json"
+    assert window.save_to(path) and takes_path(path).exists() and not doc.dirty
+    calls = len(sampler.yielded)
+
+    reopened = make_window(generate=sampler)
+    assert reopened.open_file(path)
+    assert [t.seed for t in reopened.doc.takes] == [4, 9] and reopened.doc.variation == 1
+    assert reopened.doc.clip is not None and not reopened.session.outdated and len(sampler.yielded) == calls
+    reopened.properties.take.setFocus()
+    qtbot.keyClick(reopened.properties.take, Qt.Key_Up)           # back to take 1
+    assert reopened.doc.take_index == 0 and reopened.properties.take.currentText().startswith("Take 1: seed 4")
+
+
+def test_a_damaged_takes_file_opens_the_storyboard_and_says_so(qtbot, window, tmp_path, dialogs):
+    path = tmp_path / "handoff.json"
+    sample_storyboard().save(path)
+    takes_path(path).write_bytes(b"damaged")
+    assert window.open_file(path)
+    assert window.doc.storyboard.length == 120 and window.doc.takes == []
+    assert len(dialogs.errors) == 1 and "without its takes" in dialogs.errors[0]
+    assert takes_path(path).read_bytes() == b"damaged"                        # left for the artist
