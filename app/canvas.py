@@ -22,6 +22,7 @@ from engine.storyboard import SKETCH_LIMIT_M, Contact, ObjectPath, Trajectory
 from . import commands as cmd
 from .canvas_paint import CanvasPainting
 from .document import OBJECT_PATH, Document
+from .rig import drag_pose
 from .strokes import clean_stroke, splice
 
 HIT_PX = 9.0            # how close (pixels) a click must be to a joint, stroke or anchor
@@ -37,6 +38,8 @@ class _Gesture:
     agent: str = ""
     joint: int = 0
     index: int = -1                       # object key index for move_object
+    pose: tuple | None = None             # joint drags: the keypose's (points, mask) at the press
+    mode: str = "rig"                     # joint drags: app.rig's mode, from the keys held at the press
 
 
 class SketchCanvas(CanvasPainting, QWidget):
@@ -52,6 +55,7 @@ class SketchCanvas(CanvasPainting, QWidget):
         self.show_onion = True                # the generated motion under the sketch (set_onion)
         self._gesture: _Gesture | None = None
         self._pending_hand: tuple[str, str] | None = None   # contact tool: (agent, hand) picked
+        self._press_modifiers = Qt.NoModifier                 # of the last press: the rig's mode
         self.setMinimumSize(320, 240)
         self.setMouseTracking(False)
         self.setFocusPolicy(Qt.StrongFocus)
@@ -119,7 +123,7 @@ class SketchCanvas(CanvasPainting, QWidget):
         points, mask = k.points.copy(), k.mask.copy()
         g = self._gesture
         if g and g.kind == "joint" and g.agent == agent and frame == self._doc.frame:
-            points[g.joint], mask[g.joint] = g.points[-1], True
+            points = self._posed(g)
         return points, mask
 
     def _object_outline(self, object_id: str, frame: int) -> tuple[int, np.ndarray, bool] | None:
@@ -245,6 +249,7 @@ class SketchCanvas(CanvasPainting, QWidget):
         if event.button() != Qt.LeftButton:
             return
         tool = self._doc.tool
+        self._press_modifiers = event.modifiers()
         handler = getattr(self, f"_press_{tool}")
         handler(uv)
         self.update()
@@ -286,11 +291,16 @@ class SketchCanvas(CanvasPainting, QWidget):
         self.update()
 
     # ---- tools: press ------------------------------------------------------------------------
+    def _joint_gesture(self, uv, agent: str, joint: int) -> _Gesture:
+        points, mask = self._keypose_points(agent, self._doc.frame)
+        return _Gesture("joint", [uv, uv], agent=agent, joint=joint, pose=(points.copy(), mask.copy()),
+                        mode=_rig_mode(self._press_modifiers))
+
     def _press_select(self, uv):
         hit = self._joint_at(uv)
         if hit:
             self._doc.select(agent=hit[0], joint=JOINT_NAMES[hit[1]])
-            self._gesture = _Gesture("joint", [uv, uv], agent=hit[0], joint=hit[1])
+            self._gesture = self._joint_gesture(uv, *hit)
             return
         obj = self._object_at(uv)
         if obj:
@@ -309,7 +319,7 @@ class SketchCanvas(CanvasPainting, QWidget):
         hit = self._joint_at(uv)
         if hit:
             self._doc.select(agent=hit[0], joint=JOINT_NAMES[hit[1]])
-            self._gesture = _Gesture("joint", [uv, uv], agent=hit[0], joint=hit[1])
+            self._gesture = self._joint_gesture(uv, *hit)
             return
         agent = self._doc.selection.agent
         if agent and cmd.find_keypose(self._doc.storyboard, agent, self._doc.frame) is None:
@@ -374,8 +384,15 @@ class SketchCanvas(CanvasPainting, QWidget):
         if g.kind not in ("joint", "move_object") or np.linalg.norm(delta) <= 1e-6:
             return None
         if g.kind == "joint":
-            return cmd.MoveKeyposeJoint(self._doc, g.agent, self._doc.frame, g.joint, g.points[-1])
+            return cmd.SetKeypose(self._doc, g.agent, self._doc.frame, self._posed(g), g.pose[1],
+                                  "Pose " + JOINT_NAMES[g.joint])
         return cmd.MoveObjectKey(self._doc, g.index, delta)
+
+    def _posed(self, g: _Gesture) -> np.ndarray:
+        """The keypose's points (22, 2) with joint drag g applied by the rig."""
+        points, mask = g.pose
+        pinned = tuple(JOINT_INDEX[j] for j in self._doc.tool_options.pinned)
+        return drag_pose(points, mask, g.joint, g.points[-1], g.mode, pinned)
 
     def _finish_joint(self, g: _Gesture):
         edit = self._drag_edit(g)
@@ -449,3 +466,14 @@ def _fresh_id(prefix: str, taken: list[str]) -> str:
     while f"{prefix}{n}" in taken:
         n += 1
     return f"{prefix}{n}"
+
+
+def _rig_mode(modifiers) -> str:
+    """app.rig's mode for the held keys: Shift turns, Ctrl scales the figure, Alt frees the joint."""
+    if modifiers & Qt.AltModifier:
+        return "free"
+    if modifiers & Qt.ShiftModifier:
+        return "rotate"
+    if modifiers & Qt.ControlModifier:
+        return "scale"
+    return "rig"

@@ -186,12 +186,17 @@ class CanvasPainting:
                 p.setPen(QPen(color, 2.2))
                 p.setBrush(Qt.NoBrush)
                 p.drawEllipse(QPointF(*px[JOINT_INDEX["head"]]), 0.1 * self.zoom, 0.1 * self.zoom)
+            pinned = self._doc.tool_options.pinned
             for j in np.flatnonzero(mask):
                 chosen = active and JOINT_NAMES[j] == sel.joint
                 p.setPen(QPen(INK if chosen else color.darker(140), 1.2))
                 p.setBrush(QColor("#ffd166") if chosen else PAPER)
                 r = 5.5 if chosen else (4.0 if active else 3.0)
                 p.drawEllipse(QPointF(*px[j]), r, r)
+                if JOINT_NAMES[j] in pinned:         # a pin: a square around the joint
+                    p.setBrush(Qt.NoBrush)
+                    p.setPen(QPen(INK, 1.4))
+                    p.drawRect(QRectF(px[j][0] - r - 3, px[j][1] - r - 3, 2 * r + 6, 2 * r + 6))
             p.setPen(color.darker(120))
             top = px[JOINT_INDEX["head"]] if mask[JOINT_INDEX["head"]] else px[mask].min(axis=0)
             self._draw_label(p, QPointF(top[0] - 4, top[1] - 0.1 * self.zoom - 8), agent.name or agent.id)

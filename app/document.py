@@ -37,6 +37,7 @@ def new_storyboard() -> Storyboard:
 class ToolOptions:
     """How the tools draw; the canvas reads them, the properties panel sets them."""
     object_shape: str = "rectangle"   # the object tool drags a "rectangle" or draws a "lasso"
+    pinned: tuple[str, ...] = ()      # joints that stay put while a pose is dragged (app.rig)
 
 
 OBJECT_SHAPES = ("rectangle", "lasso")
@@ -146,6 +147,11 @@ class Document(QObject):
         if new != self.tool_options:
             self.tool_options = new
             self.toolOptionsChanged.emit()
+
+    def toggle_pin(self, joint: str) -> None:
+        """Pin `joint` (a JOINT_NAMES entry) for posing, or unpin it."""
+        pinned = self.tool_options.pinned
+        self.set_tool_options(pinned=tuple(j for j in pinned if j != joint) if joint in pinned else pinned + (joint,))
 
     def set_frame(self, frame: int) -> None:
         frame = int(np.clip(frame, 0, self.storyboard.length - 1))

@@ -151,6 +151,8 @@ class MainWindow(FileActions, QMainWindow):
                             tip="Flip the selected agent's keypose at the playhead left-right")
         self.act_delete_key = a("Delete Keypose", self.delete_keypose, QKeySequence.Delete,
                                 tip="Delete the selected agent's keypose at the playhead")
+        self.act_pin = a("Pin Joint", lambda: self.doc.toggle_pin(self.doc.selection.joint), QKeySequence("P"),
+                         tip="Pin the selected joint: it stays put while the pose is dragged (P again unpins)")
 
         self.tool_group = QActionGroup(self)
         self.tool_actions: dict[str, QAction] = {}
@@ -277,7 +279,7 @@ class MainWindow(FileActions, QMainWindow):
         edit = bar.addMenu("&Edit")
         edit.addActions([self.act_undo, self.act_redo])
         edit.addSeparator()
-        edit.addActions([self.act_copy_pose, self.act_mirror, self.act_delete_key])
+        edit.addActions([self.act_copy_pose, self.act_mirror, self.act_pin, self.act_delete_key])
         tools = bar.addMenu("&Tools")
         tools.addActions(list(self.tool_actions.values()))
         play = bar.addMenu("&Playback")

@@ -137,16 +137,27 @@ class GenerationRunner(QObject):
         if event is not None:
             self.step.emit(event)
 
+    def _current(self) -> bool:
+        """Whether the signal being handled comes from the current worker (one from a worker
+        already let go, e.g. by shutdown, may still be queued: it is ignored)."""
+        return self._worker is not None and self.sender() is self._worker
+
     def _on_finished(self, result: GenerationResult) -> None:
+        if not self._current():
+            return
         self._on_step_ready()  # a last step may still sit in the mailbox
         self._end()
         self.finished.emit(result)
 
     def _on_failed(self, message: str) -> None:
+        if not self._current():
+            return
         self._end()
         self.failed.emit(message)
 
     def _on_cancelled(self) -> None:
+        if not self._current():
+            return
         self._end()
         self.cancelled.emit()
 

@@ -387,3 +387,13 @@ def test_a_shortening_that_would_delete_work_asks_first(qtbot, window, dialogs):
     qtbot.keyClicks(panel.frames, "140")
     qtbot.keyClick(panel.frames, Qt.Key_Return)
     assert window.doc.storyboard.length == 140 and len(dialogs.questions) == 1
+
+
+def test_p_pins_and_unpins_the_selected_joint(qtbot, window):
+    load_sample(window)
+    window.canvas.setFocus()
+    window.doc.select(agent="A", joint="l_ankle")
+    qtbot.keyClick(window.canvas, Qt.Key_P)
+    assert window.doc.tool_options.pinned == ("l_ankle",)
+    qtbot.keyClick(window.canvas, Qt.Key_P)
+    assert window.doc.tool_options.pinned == ()

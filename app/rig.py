@@ -1,0 +1,112 @@
+"""Posing a keypose like a rig, in the sketch plane (pure numpy: the canvas calls it per drag).
+
+A keypose is 22 points (22, 2) of the skeleton (engine.skeleton's hierarchy). Dragging one point
+moves the figure the way an animator's rig would, keeping every bone's drawn length:
+
+    pelvis                 the whole figure moves
+    wrist, ankle           two-bone IK from the shoulder or hip, the elbow or knee bending the
+                           way it bends now; the foot rides on the ankle
+    any other joint        FK: its bone turns about its parent, everything below it with it
+    Shift + drag           the whole figure turns about the pelvis (the dragged joint follows
+                           the pointer's direction)
+    Ctrl + drag            the whole figure scales about the pelvis
+    Alt + drag             only that point moves (free placement)
+
+Pinned joints stay where they are while others move: a pinned wrist or ankle re-solves its limb
+by IK to stay put (move the pelvis with the feet pinned: the legs bend); other pinned joints are
+restored after the move. Unplaced joints (mask False) neither move nor constrain.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from engine.skeleton import CHILDREN, JOINT_INDEX, PARENTS
+
+PELVIS = JOINT_INDEX["pelvis"]
+# End effector -> (chain root, middle joint) for two-bone IK.
+LIMB_ENDS = {JOINT_INDEX[f"{s}_{end}"]: (JOINT_INDEX[f"{s}_{root}"], JOINT_INDEX[f"{s}_{mid}"])
+             for s in "lr" for root, mid, end in (("shoulder", "elbow", "wrist"), ("hip", "knee", "ankle"))}
+MODES = ("rig", "rotate", "scale", "free")
+
+
+def _subtree(joint: int) -> list[int]:
+    return [joint] + [d for c in CHILDREN[joint] for d in _subtree(c)]
+
+
+SUBTREE = [_subtree(j) for j in range(len(PARENTS))]
+
+
+def _rotate(points: np.ndarray, centre: np.ndarray, angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    rel = points - centre
+    return centre + rel @ np.array([[c, s], [-s, c]])
+
+
+def _angle(v: np.ndarray) -> float:
+    return float(np.arctan2(v[1], v[0]))
+
+
+def two_bone_2d(root: np.ndarray, mid: np.ndarray, end: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(middle, end) of a two-bone chain from a fixed root reaching for target (each (2,)), with
+    the bones' current lengths and bend side; out of reach, the straight chain points at it."""
+    upper, lower = np.linalg.norm(mid - root), np.linalg.norm(end - mid)
+    to_target = target - root
+    dist = float(np.clip(np.linalg.norm(to_target), abs(upper - lower) + 1e-9, upper + lower - 1e-9))
+    direction = to_target / max(np.linalg.norm(to_target), 1e-12)
+    cos_root = (upper ** 2 + dist ** 2 - lower ** 2) / (2 * upper * dist) if upper > 0 else 1.0
+    a, b = end - root, mid - root
+    bend = np.sign(a[0] * b[1] - a[1] * b[0]) or 1.0            # which side the middle joint is on
+    angle = bend * np.arccos(np.clip(cos_root, -1.0, 1.0))
+    c, s = np.cos(angle), np.sin(angle)
+    middle = root + upper * np.array([c * direction[0] - s * direction[1], s * direction[0] + c * direction[1]])
+    return middle, root + dist * direction
+
+
+def _reach(points: np.ndarray, mask: np.ndarray, end: int, target: np.ndarray) -> None:
+    """Re-solve end's limb in place so that end reaches target (all of its chain placed)."""
+    root, mid = LIMB_ENDS[end]
+    if not mask[[root, mid, end]].all():
+        points[end] = target
+        return
+    old_end = points[end].copy()
+    points[mid], points[end] = two_bone_2d(points[root], points[mid], points[end], target)
+    for j in SUBTREE[end][1:]:                                  # the foot rides on the ankle
+        points[j] += points[end] - old_end
+
+
+def drag_pose(points: np.ndarray, mask: np.ndarray, joint: int, target, mode: str = "rig",
+              pinned: tuple[int, ...] = ()) -> np.ndarray:
+    """The pose (22, 2) after `joint` of `points` (22, 2; mask (22,) bool: placed) is dragged to
+    target (2,) in `mode` (MODES), keeping `pinned` joints where they are."""
+    target = np.asarray(target, float)
+    before = np.asarray(points, float)
+    out = before.copy()
+    pelvis = before[PELVIS] if mask[PELVIS] else before[mask].mean(0)
+    if mode == "free":
+        out[joint] = target
+        return out
+    if mode in ("rotate", "scale"):
+        if np.linalg.norm(before[joint] - pelvis) < 1e-9:
+            return out
+        if mode == "rotate":
+            out = _rotate(before, pelvis, _angle(target - pelvis) - _angle(before[joint] - pelvis))
+        else:
+            ratio = np.linalg.norm(target - pelvis) / np.linalg.norm(before[joint] - pelvis)
+            out = pelvis + (before - pelvis) * max(ratio, 0.05)
+    elif joint == PELVIS:
+        out += target - before[PELVIS]
+    elif joint in LIMB_ENDS:
+        _reach(out, mask, joint, target)
+    else:
+        parent = PARENTS[joint]
+        pivot = before[parent] if mask[parent] else before[joint]
+        angle = _angle(target - pivot) - _angle(before[joint] - pivot)
+        moved = SUBTREE[joint]
+        out[moved] = _rotate(before[moved], pivot, angle)
+    for j in pinned:               # pinned limb ends re-reach their place; other pins are restored
+        if mask[j] and np.linalg.norm(out[j] - before[j]) > 1e-12 and j != joint:
+            if j in LIMB_ENDS and LIMB_ENDS[j][0] not in pinned:
+                _reach(out, mask, j, before[j])
+            else:
+                out[j] = before[j]
+    return np.where(mask[:, None], out, before)

@@ -1,0 +1,126 @@
+"""Posing with the rig on the canvas (app/rig.py), by real mouse drags: limbs solve by IK and
+keep their bones, middle joints turn their limb, the pelvis carries the figure, Shift turns it,
+Ctrl scales it, Alt frees one joint, and pinned feet stay planted."""
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, Qt
+
+from app import commands as cmd
+from app.canvas import SketchCanvas
+from app.document import Document
+from app.rig import drag_pose
+from engine.poses import standing_pose_2d
+from engine.skeleton import JOINT_INDEX as J
+from engine.skeleton import PARENTS
+
+FRAME = 30
+
+
+@pytest.fixture
+def posed(qtbot):
+    """A canvas with agent A's standing keypose at FRAME."""
+    doc = Document()
+    canvas = SketchCanvas(doc)
+    canvas.resize(800, 600)
+    qtbot.addWidget(canvas)
+    canvas.show()
+    qtbot.waitExposed(canvas)
+    doc.set_tool("keypose")
+    doc.set_frame(FRAME)
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (0.0, 0.0)))
+    return canvas, doc
+
+
+def px(canvas, uv) -> QPoint:
+    x, y = canvas.to_px(np.asarray(uv, float))
+    return QPoint(round(x), round(y))
+
+
+def points(doc) -> np.ndarray:
+    return cmd.find_keypose(doc.storyboard, "A", FRAME).points.copy()
+
+
+def drag(qtbot, canvas, start, end, modifiers=Qt.NoModifier):
+    qtbot.mousePress(canvas, Qt.LeftButton, modifiers, px(canvas, start))
+    for s in np.linspace(0.2, 1.0, 5):
+        qtbot.mouseMove(canvas, px(canvas, start + s * (np.asarray(end) - start)))
+    qtbot.mouseRelease(canvas, Qt.LeftButton, modifiers, px(canvas, end))
+
+
+def bones(p: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(p[1:] - p[list(PARENTS[1:])], axis=-1)
+
+
+def test_dragging_a_wrist_bends_the_arm_and_keeps_its_bones(qtbot, posed):
+    canvas, doc = posed
+    before = points(doc)
+    target = before[J["r_wrist"]] + (0.15, 0.35)
+    drag(qtbot, canvas, before[J["r_wrist"]], target)
+    after = points(doc)
+    tol = 1.5 / canvas.zoom                                      # a pixel of rounding
+    assert np.linalg.norm(after[J["r_wrist"]] - target) < tol
+    assert np.allclose(after[J["r_shoulder"]], before[J["r_shoulder"]])            # the chain's root stays
+    assert np.linalg.norm(after[J["r_elbow"]] - before[J["r_elbow"]]) > 0.05       # the elbow went with it
+    np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
+    moved = np.linalg.norm(after - before, axis=-1) > 1e-12
+    assert set(np.flatnonzero(moved)) == {J["r_elbow"], J["r_wrist"]}
+    doc.undo_stack.undo()
+    assert np.allclose(points(doc), before)
+
+
+def test_a_middle_joint_turns_its_limb_and_the_pelvis_carries_the_figure(qtbot, posed):
+    canvas, doc = posed
+    before = points(doc)
+    knee = before[J["l_knee"]]
+    drag(qtbot, canvas, knee, knee + (0.25, 0.05))
+    after = points(doc)
+    np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
+    assert np.linalg.norm(after[J["l_ankle"]] - before[J["l_ankle"]]) > 0.1         # the shin went along
+    assert np.allclose(after[J["l_hip"]], before[J["l_hip"]])
+    pelvis = after[J["pelvis"]]
+    drag(qtbot, canvas, pelvis, pelvis + (0.4, -0.1))
+    moved = points(doc)
+    shift = moved - after
+    assert np.allclose(shift, shift[0], atol=1.5 / canvas.zoom) and np.linalg.norm(shift[0]) > 0.3
+
+
+def test_shift_turns_ctrl_scales_alt_frees(qtbot, posed):
+    canvas, doc = posed
+    before = points(doc)
+    pelvis, head = before[J["pelvis"]], before[J["head"]]
+    drag(qtbot, canvas, head, pelvis + np.array([1.0, 0.0]) * np.linalg.norm(head - pelvis), Qt.ShiftModifier)
+    turned = points(doc)
+    np.testing.assert_allclose(bones(turned), bones(before), atol=1e-9)
+    assert turned[J["head"], 0] > pelvis[0] + 0.4                              # lying on its side now
+    doc.undo_stack.undo()
+    drag(qtbot, canvas, head, pelvis + 1.5 * (head - pelvis), Qt.ControlModifier)
+    np.testing.assert_allclose(bones(points(doc)), 1.5 * bones(before), rtol=0.02)
+    doc.undo_stack.undo()
+    wrist = before[J["l_wrist"]]
+    drag(qtbot, canvas, wrist, wrist + (0.3, 0.3), Qt.AltModifier)
+    moved = np.linalg.norm(points(doc) - before, axis=-1) > 1e-12
+    assert list(np.flatnonzero(moved)) == [J["l_wrist"]]
+
+
+def test_pinned_feet_stay_while_the_body_moves(qtbot, posed):
+    canvas, doc = posed
+    before = points(doc)
+    for foot in ("l_ankle", "r_ankle"):
+        doc.toggle_pin(foot)                      # the window's P key (Edit > Pin Joint)
+    assert set(doc.tool_options.pinned) == {"l_ankle", "r_ankle"}
+    pelvis = before[J["pelvis"]]
+    drag(qtbot, canvas, pelvis, pelvis + (0.0, -0.15))                        # crouch
+    after = points(doc)
+    assert np.allclose(after[[J["l_ankle"], J["r_ankle"], J["l_foot"], J["r_foot"]]],
+                       before[[J["l_ankle"], J["r_ankle"], J["l_foot"], J["r_foot"]]], atol=1e-9)
+    assert after[J["l_knee"], 1] < before[J["l_knee"], 1] - 0.05
+    np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
+
+
+def test_unplaced_joints_neither_move_nor_constrain():
+    pose = standing_pose_2d(Document().storyboard.camera)
+    mask = np.ones(22, bool)
+    mask[J["r_elbow"]] = False
+    out = drag_pose(pose, mask, J["r_wrist"], pose[J["r_wrist"]] + (0.2, 0.2))
+    assert np.allclose(out[J["r_wrist"]], pose[J["r_wrist"]] + (0.2, 0.2))
+    assert np.allclose(np.delete(out, J["r_wrist"], 0), np.delete(pose, J["r_wrist"], 0))
