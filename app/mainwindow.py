@@ -1,6 +1,6 @@
 """The main window: canvas in the middle, timeline + phase strip, 3D view and properties in
 docks; menus, toolbar, status bar and shortcuts; generation (files, exports and recovery are
-files.py's).
+files.py's, keypose actions pose_actions.py's, the live preview live_preview.py's).
 
 Every failure a person can cause (a bad file, a full disk, a sampler error) becomes a dialog
 with a one-line message, and the document stays as it was.
@@ -20,7 +20,6 @@ from engine.cpu import usable_cores
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard
 
-from . import commands as cmd
 from .autosave import Autosaver
 from .canvas import SketchCanvas
 from .document import TOOLS, Document
@@ -29,12 +28,12 @@ from .files import APP_NAME, FileActions
 from .generation import GenerationSettings, StepStream, start_generation
 from .live_preview import LivePreview
 from .phase_strip import PhaseStrip, phase_legend_html
+from .pose_actions import PoseActions
 from .playback import SPEEDS, Playback, speed_label
-from .poses import previous_keypose
 from .properties import PropertiesPanel
 from .shortcuts import WindowShortcutsFirst
 from .session import GenerationSession
-from .timeline import PlaybackControls, Timeline, delete_keyframe
+from .timeline import PlaybackControls, Timeline
 from .view_options import LABELS as VIEW_LABELS
 from .view_options import ViewOptions, ViewOptionsModel
 from .viewport import Viewport
@@ -74,7 +73,7 @@ class VerticalScroll(QScrollArea):
         self.setMinimumWidth(self.widget().minimumSizeHint().width() + self.verticalScrollBar().sizeHint().width())
 
 
-class MainWindow(FileActions, QMainWindow):
+class MainWindow(FileActions, PoseActions, QMainWindow):
     def __init__(self, data_dir: Path, settings: QSettings | None = None,
                  generate: Callable[[Storyboard, GenerationSettings], StepStream] = start_generation,
                  autosave_delay_ms: int = 400):
@@ -280,6 +279,7 @@ class MainWindow(FileActions, QMainWindow):
         edit.addActions([self.act_undo, self.act_redo])
         edit.addSeparator()
         edit.addActions([self.act_copy_pose, self.act_mirror, self.act_pin, self.act_delete_key])
+        self.build_pose_library(edit.addMenu("Stamp &Pose"))
         tools = bar.addMenu("&Tools")
         tools.addActions(list(self.tool_actions.values()))
         play = bar.addMenu("&Playback")
@@ -421,29 +421,6 @@ class MainWindow(FileActions, QMainWindow):
         self.viewport.set_scene_options(options.scene(self.viewport.options))
         for name, action in self.view_actions.items():
             action.setChecked(getattr(options, name))
-
-    # ---- editing actions -----------------------------------------------------------------------
-    def copy_previous_keypose(self) -> None:
-        doc = self.doc
-        agent = doc.selection.agent
-        previous = previous_keypose(doc.storyboard, agent, doc.frame)
-        if previous is None:
-            self.statusBar().showMessage(f"Agent {agent} has no keypose before frame {doc.frame}.", 5000)
-            return
-        doc.undo_stack.push(cmd.SetKeypose(doc, agent, doc.frame, previous.points, previous.mask,
-                                           f"Copy keypose from frame {previous.frame}"))
-
-    def mirror_keypose(self) -> None:
-        doc = self.doc
-        if cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame) is None:
-            self.statusBar().showMessage("No keypose at the playhead to mirror.", 5000)
-            return
-        doc.undo_stack.push(cmd.MirrorKeypose(doc, doc.selection.agent, doc.frame))
-
-    def delete_keypose(self) -> None:
-        doc = self.doc
-        if cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame) is not None:
-            delete_keyframe(doc, "agent", doc.selection.agent, doc.frame)
 
     # ---- generation ------------------------------------------------------------------------------
     def generation_settings(self) -> GenerationSettings:

@@ -1,10 +1,32 @@
-"""The figure an artist starts a keypose from: the canvas's standing template."""
+"""The figures an artist starts a keypose from: the canvas's standing template and a small pose
+library (stand, walk stride, crouch-reach, lift, carry, hand over, hold hands, wave), each a 3D
+pose on the rest skeleton facing +Z, seen through the storyboard camera."""
 from __future__ import annotations
 
 import numpy as np
 
 from .camera import StoryboardCamera
 from .skeleton import JOINT_INDEX, rest_pose
+from .synth.reach import two_bone_ik
+
+J = JOINT_INDEX
+# name -> (pelvis drop (m), {end joint: target relative to the standing pelvis (x left, y up, z forward)})
+_LIBRARY = {
+    "stand": (0.0, {}),
+    "walk stride": (0.03, {"l_ankle": (0.09, -0.83, 0.28), "r_ankle": (-0.09, -0.85, -0.24),
+                           "l_wrist": (0.2, -0.35, -0.18), "r_wrist": (-0.2, -0.33, 0.2)}),
+    "crouch-reach": (0.38, {"l_ankle": (0.14, -0.86, -0.05), "r_ankle": (-0.14, -0.86, -0.05),
+                            "l_wrist": (0.16, -0.55, 0.45), "r_wrist": (-0.16, -0.55, 0.45)}),
+    "lift": (0.28, {"l_ankle": (0.16, -0.86, 0.0), "r_ankle": (-0.16, -0.86, 0.0),
+                    "l_wrist": (0.2, -0.45, 0.38), "r_wrist": (-0.2, -0.45, 0.38)}),
+    "carry": (0.02, {"l_wrist": (0.2, 0.05, 0.35), "r_wrist": (-0.2, 0.05, 0.35)}),
+    "hand over": (0.0, {"r_wrist": (-0.12, 0.3, 0.55)}),
+    "hold hands": (0.0, {"r_wrist": (-0.45, -0.12, 0.15)}),
+    "wave": (0.0, {"r_wrist": (-0.35, 0.85, 0.1)}),
+}
+POSE_NAMES = tuple(_LIBRARY)
+_LIMBS = {"l_wrist": ("l_shoulder", "l_elbow"), "r_wrist": ("r_shoulder", "r_elbow"),
+          "l_ankle": ("l_hip", "l_knee"), "r_ankle": ("r_hip", "r_knee")}
 
 
 def standing_pose_2d(camera: StoryboardCamera) -> np.ndarray:
@@ -18,3 +40,37 @@ def standing_pose_2d(camera: StoryboardCamera) -> np.ndarray:
         joints[JOINT_INDEX[side + "wrist"]] = elbow + (0.02 * sign, -0.24, 0.05)
     uv = camera.project(joints)
     return uv - uv[0]
+
+
+def library_pose(name: str) -> np.ndarray:
+    """A library pose in 3D (22, 3): the standing figure with its pelvis lowered and its hands and
+    feet moved to the pose's places, elbows and knees solved by two-bone IK (elbows bend down
+    and back, knees forward), facing +Z."""
+    drop, ends = _LIBRARY[name]
+    joints = rest_pose().copy()
+    for side, sign in (("l_", 1.0), ("r_", -1.0)):                   # arms down, as standing_pose_2d
+        elbow = joints[J[side + "shoulder"]] + (0.04 * sign, -0.26, 0.0)
+        joints[J[side + "elbow"]], joints[J[side + "wrist"]] = elbow, elbow + (0.02 * sign, -0.24, 0.05)
+    feet = {side: joints[J[side + "foot"]] - joints[J[side + "ankle"]] for side in ("l_", "r_")}
+    standing = joints[J["pelvis"]].copy()
+    upper_body = [j for j in range(len(joints)) if j not in [J[n] for n in
+                  ("l_knee", "r_knee", "l_ankle", "r_ankle", "l_foot", "r_foot")]]
+    joints[upper_body] -= (0.0, drop, 0.0)
+    for end in ("l_ankle", "r_ankle", "l_wrist", "r_wrist"):
+        root, mid = (J[n] for n in _LIMBS[end])
+        target = standing + ends[end] if end in ends else joints[J[end]]
+        upper = np.linalg.norm(rest_pose()[mid] - rest_pose()[root])
+        lower = np.linalg.norm(rest_pose()[J[end]] - rest_pose()[mid])
+        pole = np.array([0.0, 0.0, 1.0]) if "ankle" in end else np.array([0.0, -0.5, -1.0])
+        joints[mid], joints[J[end]] = two_bone_ik(joints[root], target, upper, lower, pole)
+        if "ankle" in end:
+            joints[J[end[:2] + "foot"]] = joints[J[end]] + feet[end[:2]]
+    return joints
+
+
+def library_pose_2d(name: str, camera: StoryboardCamera) -> np.ndarray:
+    """library_pose seen through the camera, its pelvis where a standing figure's is: (22, 2)."""
+    uv = camera.project(library_pose(name))
+    standing = camera.project(rest_pose()[:1])[0]
+    drop = camera.project(rest_pose()[:1] - (0.0, _LIBRARY[name][0], 0.0))[0] - standing
+    return uv - uv[0] + drop

@@ -124,3 +124,23 @@ def test_unplaced_joints_neither_move_nor_constrain():
     out = drag_pose(pose, mask, J["r_wrist"], pose[J["r_wrist"]] + (0.2, 0.2))
     assert np.allclose(out[J["r_wrist"]], pose[J["r_wrist"]] + (0.2, 0.2))
     assert np.allclose(np.delete(out, J["r_wrist"], 0), np.delete(pose, J["r_wrist"], 0))
+
+
+def test_a_library_pose_is_stamped_where_the_figure_stands(qtbot, make_window):
+    from engine.poses import POSE_NAMES
+    from engine.skeleton import FEET
+    window = make_window()
+    doc = window.doc
+    doc.set_frame(FRAME)
+    doc.select(agent="B")
+    menu = next(a.menu() for a in window.menuBar().actions() if a.text() == "&Edit")
+    library = next(a.menu() for a in menu.actions() if a.text() == "Stamp &Pose")
+    assert [a.text().lower() for a in library.actions()] == list(POSE_NAMES)
+    next(a for a in library.actions() if a.text() == "Stand").trigger()
+    feet = cmd.find_keypose(doc.storyboard, "B", FRAME).points[list(FEET)].mean(0)
+    for action in library.actions():
+        action.trigger()
+        stamped = cmd.find_keypose(doc.storyboard, "B", FRAME)
+        assert stamped.mask.all() and np.allclose(stamped.points[list(FEET)].mean(0), feet, atol=0.12)
+    assert "wave" in doc.undo_stack.undoText().lower()
+    assert stamped.points[J["r_wrist"], 1] > stamped.points[J["head"], 1]          # the hand is up

@@ -1,0 +1,49 @@
+"""The window's keypose actions (a mixin of MainWindow, like files.py): copy the previous keypose,
+mirror, stamp a pose of the library, delete. Each acts on the selected agent at the playhead
+through one undoable command."""
+from __future__ import annotations
+
+from engine.poses import POSE_NAMES
+
+from . import commands as cmd
+from .poses import previous_keypose, stamped_pose
+from .timeline import delete_keyframe
+
+
+class PoseActions:
+    """Needs self.doc (Document) and self.statusBar() (QMainWindow)."""
+
+    def copy_previous_keypose(self) -> None:
+        doc = self.doc
+        agent = doc.selection.agent
+        previous = previous_keypose(doc.storyboard, agent, doc.frame)
+        if previous is None:
+            self.statusBar().showMessage(f"Agent {agent} has no keypose before frame {doc.frame}.", 5000)
+            return
+        doc.undo_stack.push(cmd.SetKeypose(doc, agent, doc.frame, previous.points, previous.mask,
+                                           f"Copy keypose from frame {previous.frame}"))
+
+    def mirror_keypose(self) -> None:
+        doc = self.doc
+        if cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame) is None:
+            self.statusBar().showMessage("No keypose at the playhead to mirror.", 5000)
+            return
+        doc.undo_stack.push(cmd.MirrorKeypose(doc, doc.selection.agent, doc.frame))
+
+    def stamp_pose(self, name: str) -> None:
+        doc = self.doc
+        points, mask = stamped_pose(doc.storyboard, doc.selection.agent, doc.frame, name)
+        doc.undo_stack.push(cmd.SetKeypose(doc, doc.selection.agent, doc.frame, points, mask, f"Stamp pose: {name}"))
+
+    def delete_keypose(self) -> None:
+        doc = self.doc
+        if cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame) is not None:
+            delete_keyframe(doc, "agent", doc.selection.agent, doc.frame)
+
+    def build_pose_library(self, menu) -> None:
+        """Fill `menu` (Edit > Stamp Pose) with the library's poses."""
+        menu.setToolTipsVisible(True)
+        for name in POSE_NAMES:
+            action = menu.addAction(name.capitalize())
+            action.setToolTip(f"Pose the selected agent at the playhead: {name}, standing where it stands")
+            action.triggered.connect(lambda _=False, name=name: self.stamp_pose(name))
