@@ -67,8 +67,23 @@ class SetKeypose(StoryboardCommand):
         self._points, self._mask = np.array(points, float), np.array(mask, bool)
 
     def apply(self, sb):
-        sb.keyposes = [k for k in sb.keyposes if not (k.agent == self._agent and k.frame == self._frame)]
-        sb.keyposes.append(Keypose(self._agent, self._frame, self._points.copy(), self._mask.copy()))
+        old = find_keypose(sb, self._agent, self._frame)
+        timing = (old.hold, old.ease_in, old.ease_out) if old is not None else ()   # a new pose keeps its timing
+        sb.keyposes = [k for k in sb.keyposes if k is not old]
+        sb.keyposes.append(Keypose(self._agent, self._frame, self._points.copy(), self._mask.copy(), *timing))
+
+
+class SetKeyTiming(StoryboardCommand):
+    """How long the keypose is held (frames) and whether the motion eases into and out of it."""
+    touches = ("keyposes",)
+
+    def __init__(self, document, agent: str, frame: int, hold: int, ease_in: bool, ease_out: bool):
+        super().__init__(document, "Key timing")
+        self._agent, self._frame, self._timing = agent, frame, (hold, ease_in, ease_out)
+
+    def apply(self, sb):
+        k = find_keypose(sb, self._agent, self._frame)
+        k.hold, k.ease_in, k.ease_out = self._timing
 
 
 class MoveKeyposeJoint(StoryboardCommand):
@@ -143,6 +158,8 @@ class RetimeKeyframe(StoryboardCommand):
         keys[:] = [k for k in keys if not (getattr(k, attr) == self._owner and k.frame == self._new)]
         for k in moving:
             k.frame = self._new
+            if self._kind == "agent":
+                k.hold = min(k.hold, sb.length - 1 - k.frame)   # a hold stays inside the clip
 
 
 # ---- strokes: trajectories and object paths ----------------------------------------------------

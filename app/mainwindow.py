@@ -1,4 +1,4 @@
-"""The main window: canvas in the middle, timeline + phase strip, 3D view and properties in
+"""The main window: canvas in the middle, timeline + phase strip, 3D view, floor plan and properties in
 docks; menus, toolbar, status bar and shortcuts; generation (files, exports and recovery are
 files.py's, keypose actions pose_actions.py's, the live preview live_preview.py's).
 
@@ -22,6 +22,7 @@ from engine.storyboard import Storyboard
 
 from .autosave import Autosaver
 from .canvas import SketchCanvas
+from .floor_plan import FloorPlan
 from .document import TOOLS, Document
 from .examples import list_examples
 from .files import APP_NAME, FileActions
@@ -40,7 +41,7 @@ from .viewport import Viewport
 
 THREADS_KEY = "generation/threads"   # 0 or absent: automatic
 GEOMETRY_KEY, DOCKS_KEY = "window/geometry", "window/docks"
-LAYOUT_VERSION = 1                   # bump when the docks change: an older saved layout is ignored
+LAYOUT_VERSION = 2                   # bump when the docks change: an older saved layout is ignored
 TOOL_KEYS = {"select": "V", "keypose": "K", "trajectory": "T", "object": "O", "contact": "C", "erase": "E"}
 TOOL_TIPS = {"select": "Select and move joints and objects",
              "keypose": "Click to place a stick figure at the playhead; drag joints to pose it",
@@ -87,6 +88,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
 
         self.canvas = SketchCanvas(self.doc)
         self.setCentralWidget(self.canvas)
+        self.floor_plan = FloorPlan(self.doc)
         self.timeline = Timeline(self.doc)
         self.phase_strip = PhaseStrip(self.doc)
         self.viewport = Viewport()
@@ -146,6 +148,10 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.addActions([self.act_undo, self.act_redo])
         self.act_copy_pose = a("Copy Previous Keypose", self.copy_previous_keypose, QKeySequence("Ctrl+D"),
                                tip="Pose the selected agent at the playhead like its previous keyframe")
+        self.act_copy = a("Copy Pose", self.copy_pose, QKeySequence.Copy,
+                          tip="Copy the selected agent's keypose at the playhead")
+        self.act_paste = a("Paste Pose", self.paste_pose, QKeySequence.Paste,
+                           tip="Pose the selected agent at the playhead like the copied pose, where it stands")
         self.act_mirror = a("Mirror Keypose", self.mirror_keypose, QKeySequence("M"),
                             tip="Flip the selected agent's keypose at the playhead left-right")
         self.act_delete_key = a("Delete Keypose", self.delete_keypose, QKeySequence.Delete,
@@ -222,6 +228,9 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         column.addWidget(self.phase_strip, 1)
         self.timeline_dock = self._dock("Timeline", timeline_panel, Qt.BottomDockWidgetArea)
         self.viewport_dock = self._dock("3D View", self.viewport, Qt.RightDockWidgetArea)
+        self.floor_plan_dock = self._dock("Floor Plan", self.floor_plan, Qt.RightDockWidgetArea)
+        self.tabifyDockWidget(self.viewport_dock, self.floor_plan_dock)
+        self.viewport_dock.raise_()
         self.properties_dock = self._dock("Properties", VerticalScroll(self.properties), Qt.LeftDockWidgetArea)
         self.resizeDocks([self.viewport_dock], [440], Qt.Horizontal)
         self.resizeDocks([self.properties_dock], [250], Qt.Horizontal)
@@ -278,7 +287,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         edit = bar.addMenu("&Edit")
         edit.addActions([self.act_undo, self.act_redo])
         edit.addSeparator()
-        edit.addActions([self.act_copy_pose, self.act_mirror, self.act_pin, self.act_delete_key])
+        edit.addActions([self.act_copy, self.act_paste, self.act_copy_pose, self.act_mirror, self.act_pin, self.act_delete_key])
         self.build_pose_library(edit.addMenu("Stamp &Pose"))
         tools = bar.addMenu("&Tools")
         tools.addActions(list(self.tool_actions.values()))
@@ -297,7 +306,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         view = bar.addMenu("&View")
         view.addActions(list(self.view_actions.values()))
         view.addSeparator()
-        for dock in (self.timeline_dock, self.viewport_dock, self.properties_dock):
+        for dock in (self.timeline_dock, self.viewport_dock, self.floor_plan_dock, self.properties_dock):
             view.addAction(dock.toggleViewAction())
         self._rebuild_recent()
 
@@ -370,7 +379,8 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         doc.resultChanged.connect(self._show_result)
         self.viewport.playToggleRequested.connect(self.playback.toggle)
         self.viewport.stepRequested.connect(self.playback.step)
-        self.canvas.message.connect(lambda text: self.statusBar().showMessage(text, 5000))
+        for view in (self.canvas, self.floor_plan):
+            view.message.connect(lambda text: self.statusBar().showMessage(text, 5000))
         self.playback.loopChanged.connect(self.act_loop.setChecked)
         self.playback.speedChanged.connect(self._on_speed)
         self.view_options.changed.connect(self._apply_view_options)

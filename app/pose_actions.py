@@ -1,17 +1,18 @@
 """The window's keypose actions (a mixin of MainWindow, like files.py): copy the previous keypose,
-mirror, stamp a pose of the library, delete. Each acts on the selected agent at the playhead
+copy and paste a pose between keys and agents, mirror, stamp a pose of the library, delete. Each acts on the selected agent at the playhead
 through one undoable command."""
 from __future__ import annotations
 
 from engine.poses import POSE_NAMES
 
 from . import commands as cmd
-from .poses import previous_keypose, stamped_pose
+from .poses import placed_pose, previous_keypose, stamped_pose
 from .timeline import delete_keyframe
 
 
 class PoseActions:
     """Needs self.doc (Document) and self.statusBar() (QMainWindow)."""
+    _copied_pose = None          # (points (22, 2), mask (22,)) of Copy Pose, for Paste Pose
 
     def copy_previous_keypose(self) -> None:
         doc = self.doc
@@ -22,6 +23,25 @@ class PoseActions:
             return
         doc.undo_stack.push(cmd.SetKeypose(doc, agent, doc.frame, previous.points, previous.mask,
                                            f"Copy keypose from frame {previous.frame}"))
+
+    def copy_pose(self) -> None:
+        doc = self.doc
+        key = cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame)
+        if key is None:
+            self.statusBar().showMessage("No keypose at the playhead to copy.", 5000)
+            return
+        self._copied_pose = (key.points.copy(), key.mask.copy())
+        self.statusBar().showMessage(f"Copied {doc.selection.agent}'s pose at frame {doc.frame}: "
+                                     "paste it on any agent and frame (M mirrors it).", 5000)
+
+    def paste_pose(self) -> None:
+        """The copied pose on the selected agent at the playhead, standing where that agent stands."""
+        doc = self.doc
+        if self._copied_pose is None:
+            self.statusBar().showMessage("Copy a keypose first (Edit > Copy Pose).", 5000)
+            return
+        points, mask = placed_pose(doc.storyboard, doc.selection.agent, doc.frame, *self._copied_pose)
+        doc.undo_stack.push(cmd.SetKeypose(doc, doc.selection.agent, doc.frame, points, mask, "Paste pose"))
 
     def mirror_keypose(self) -> None:
         doc = self.doc

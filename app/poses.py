@@ -1,5 +1,5 @@
 """Starting points for new keyposes: the standing template (engine.poses), a copy of the
-previous keyframe, or a pose of the library stamped where the figure stands."""
+previous keyframe, a pose of the library or a copied pose placed where the figure stands."""
 from __future__ import annotations
 
 import numpy as np
@@ -27,15 +27,24 @@ def new_keypose(sb: Storyboard, agent: str, frame: int) -> tuple[np.ndarray, np.
 
 
 def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """(points (22, 2), mask (22,)) of library pose `name` for the agent at `frame`: standing where
-    the agent's keypose there (or the one before) has its feet, else where a new keypose goes."""
+    """(points (22, 2), mask (22,)) of library pose `name` for the agent at `frame`, standing where
+    the agent stands (see `placed_pose`)."""
     pose = library_pose_2d(name, sb.camera)
-    standing = standing_pose_2d(sb.camera)
+    return placed_pose(sb, agent, frame, pose, np.ones(len(pose), bool))
+
+
+def placed_pose(sb: Storyboard, agent: str, frame: int, points: np.ndarray, mask: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """A pose (points (22, 2), mask (22,)) moved to where the agent stands at `frame`: its feet on
+    the feet of the agent's keypose there (or the one before), else its pelvis on that pelvis,
+    else where a new keypose would go. A pose with neither feet nor pelvis is left where it is."""
     here = next((k for k in sb.keyposes if k.agent == agent and k.frame == frame), None) or previous_keypose(sb, agent, frame)
-    if here is not None and here.mask[list(FEET)].all():
-        place = here.points[list(FEET)].mean(0) - standing[list(FEET)].mean(0)
-    elif here is not None and here.mask[0]:
-        place = here.points[0]
-    else:                                        # no keypose yet: where a new one would stand
-        place = new_keypose(sb, agent, frame)[0][0]
-    return pose + place, np.ones(len(pose), bool)
+    feet = list(FEET)
+    if here is not None and here.mask[feet].all() and mask[feet].all():
+        shift = here.points[feet].mean(0) - points[feet].mean(0)
+    elif mask[0]:
+        target = here.points[0] if here is not None and here.mask[0] else new_keypose(sb, agent, frame)[0][0]
+        shift = target - points[0]
+    else:
+        shift = np.zeros(2)
+    return points + shift, mask.copy()

@@ -51,8 +51,19 @@ class PropertiesPanel(QWidget):
         self.joint.addItems(JOINT_CHOICES)
         self.joint.insertSeparator(len(PATH_JOINTS))
         self.joint.insertSeparator(len(JOINT_CHOICES))
+        self.hold = QSpinBox()
+        self.hold.setSuffix(" frames held")
+        self.hold.setToolTip("How long the selected agent's keypose at the playhead is held still")
+        self.ease_in = QCheckBox("Ease in")
+        self.ease_in.setToolTip("The motion slows into this keypose")
+        self.ease_out = QCheckBox("Ease out")
+        self.ease_out.setToolTip("The motion starts slowly out of this keypose (after its hold)")
+        key_timing = QHBoxLayout()
+        for w in (self.hold, self.ease_in, self.ease_out):
+            key_timing.addWidget(w)
         form.addRow("Agent", self.agent)
         form.addRow("Joint", self.joint)
+        form.addRow("Key", key_timing)
         layout.addWidget(box)
 
         box = QGroupBox("Object")
@@ -117,6 +128,10 @@ class PropertiesPanel(QWidget):
         self.agent.activated.connect(lambda i: document.select(agent=self.agent.itemData(i)))
         self.joint.activated.connect(lambda i: document.select(joint=self.joint.itemText(i)))
         self.object.activated.connect(lambda i: document.select(object=self.object.itemData(i)))
+        self.hold.editingFinished.connect(self._apply_key_timing)
+        for box in (self.ease_in, self.ease_out):
+            box.toggled.connect(self._apply_key_timing)
+        document.frameChanged.connect(self._refresh_key_timing)
         self.object_type.activated.connect(self._apply_object)
         for spin in self.size:
             spin.editingFinished.connect(self._apply_object)
@@ -163,6 +178,7 @@ class PropertiesPanel(QWidget):
             self.agent.addItem(a.name or a.id, a.id)
         self.agent.setCurrentIndex(self.agent.findData(sel.agent))
         self.joint.setCurrentIndex(self.joint.findText(sel.joint))
+        self._refresh_key_timing()
         self.object.clear()
         for o in sb.objects:
             self.object.addItem(o.id, o.id)
@@ -198,7 +214,30 @@ class PropertiesPanel(QWidget):
         for w in widgets:
             w.blockSignals(False)
 
+    def _refresh_key_timing(self, *_) -> None:
+        """The Key row shows the selected agent's keypose at the playhead (disabled without one)."""
+        doc = self._doc
+        key = cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame)
+        later = [k.frame for k in doc.storyboard.keyposes if k.agent == doc.selection.agent and k.frame > doc.frame]
+        for w in (self.hold, self.ease_in, self.ease_out):
+            w.blockSignals(True)
+            w.setEnabled(key is not None)
+        # a hold ends before the agent's next key (and the clip's end)
+        self.hold.setRange(0, max(0, min([doc.storyboard.length - 1, *(f - 1 for f in later)]) - doc.frame))
+        self.hold.setValue(key.hold if key else 0)
+        self.ease_in.setChecked(bool(key and key.ease_in))
+        self.ease_out.setChecked(bool(key and key.ease_out))
+        for w in (self.hold, self.ease_in, self.ease_out):
+            w.blockSignals(False)
+
     # ---- widgets -> document -------------------------------------------------------------------
+    def _apply_key_timing(self, *_):
+        doc = self._doc
+        key = cmd.find_keypose(doc.storyboard, doc.selection.agent, doc.frame)
+        timing = (self.hold.value(), self.ease_in.isChecked(), self.ease_out.isChecked())
+        if key is not None and timing != (key.hold, key.ease_in, key.ease_out):
+            doc.undo_stack.push(cmd.SetKeyTiming(doc, key.agent, key.frame, *timing))
+
     def _apply_length(self):
         sb, length = self._doc.storyboard, self.frames.value()
         if length == sb.length:

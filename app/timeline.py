@@ -14,8 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt
-from PySide6.QtGui import QColor, QPainter, QPen, QPolygonF
+from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QMenu, QToolButton, QWidget
+
+from engine.finishing.timing import held_until
 
 from . import commands as cmd
 from .document import Document
@@ -184,10 +186,17 @@ class Timeline(QWidget):
             p.fillRect(QRectF(0, top + 3, 4, ROW_H - 7), QColor(track.color))
             p.setPen(QColor("#3a3a3a"))
             p.drawText(QRectF(10, top, LABEL_W - 12, ROW_H), Qt.AlignVCenter, track.owner)
+            timing = self._key_timing(track)
             for f in self.key_frames(track):
+                held, ease_in, ease_out = timing.get(f, (0, False, False))
                 if moving and moving[0] == track and moving[1] == f:
                     f = moving[2]
-                self._diamond(p, self._x(f), top + ROW_H / 2, QColor(track.color))
+                y, color = top + ROW_H / 2, QColor(track.color)
+                if held:                     # a hold: a bar as long as the pose stays
+                    hold_color = QColor(color)
+                    hold_color.setAlpha(110)
+                    p.fillRect(QRectF(QPointF(self._x(f), y - 2.5), QPointF(self._x(f + held), y + 2.5)), hold_color)
+                self._key_marker(p, self._x(f), y, color, ease_in, ease_out)
         # Playhead.
         x = self._x(self._doc.frame)
         p.setPen(QPen(PLAYHEAD, 1.6))
@@ -196,12 +205,28 @@ class Timeline(QWidget):
         p.drawPolygon(QPolygonF([QPointF(x - 5, 0), QPointF(x + 5, 0), QPointF(x, 7)]))
         p.end()
 
+    def _key_timing(self, track: Track) -> dict[int, tuple[int, bool, bool]]:
+        """{frame: (frames held, ease in, ease out)} of an agent track's keyposes."""
+        if track.kind != "agent":
+            return {}
+        keys = sorted((k for k in self._doc.storyboard.keyposes if k.agent == track.owner), key=lambda k: k.frame)
+        last = self._doc.storyboard.length - 1
+        return {k.frame: (held_until(keys, i, last) - k.frame, k.ease_in, k.ease_out) for i, k in enumerate(keys)}
+
     @staticmethod
-    def _diamond(p: QPainter, x: float, y: float, color: QColor):
+    def _key_marker(p: QPainter, x: float, y: float, color: QColor, ease_in: bool = False, ease_out: bool = False):
+        """A key as a diamond; an eased side is round, as animation editors draw a smooth key."""
         r = 5.5
         p.setPen(QPen(color.darker(150), 1))
         p.setBrush(color)
-        p.drawPolygon(QPolygonF([QPointF(x, y - r), QPointF(x + r, y), QPointF(x, y + r), QPointF(x - r, y)]))
+        path = QPainterPath(QPointF(x, y - r))
+        for eased, side in ((ease_out, 1), (ease_in, -1)):   # right half, then left half, clockwise
+            if eased:
+                path.arcTo(QRectF(x - r, y - r, 2 * r, 2 * r), 90 if side == 1 else 270, -180)
+            else:
+                path.lineTo(QPointF(x + side * r, y))
+                path.lineTo(QPointF(x, y + side * r))
+        p.drawPath(path)
 
 
 class PlaybackControls(QWidget):

@@ -6,13 +6,15 @@
 - `export_gltf`: an animated binary glTF (.glb) for Blender and other DCC tools.
 
 The glb is written here with numpy + json + struct (glTF 2.0 is Y up, metres, right-handed:
-the same world as ours, so no axis change). Per person it holds the 22-joint node hierarchy
-with rest offsets as node translations; one animation drives every joint's local rotation
-(quaternions from rot6d) and the pelvis translation, plus each object's translation and
-rotation. The body is a capsule per bone (and a sphere on each leaf joint) as a mesh rigidly
-attached to the bone's parent joint node, so there is no skinning. Node names are
-"<agent>_<joint>" with agents A, B, ... as in storyboards; objects are named by type.
-The nodes' static transforms are frame 0, so viewers that ignore animation show frame 0.
+the same world as ours, so no axis change). Each person is a rig, as DCC tools import one: an
+armature node (named by agent: A, B, ...) over the 22-joint node hierarchy, bones named as in the
+BVH (skeleton.JOINT_NAMES) with the rest offsets as translations, and a skin that binds one body
+mesh (a capsule per bone, a sphere on each leaf joint; each vertex rigidly on its bone) in the
+rest pose (every local rotation identity, as in the BVH). One animation drives every joint's
+local rotation (quaternions from rot6d) and the pelvis translation, plus each object's
+translation and rotation; objects are nodes of their own, named by type. The nodes' static
+transforms are frame 0, so viewers that ignore animation show frame 0; the scene's extras give
+the clip's frame range and rate.
 """
 from __future__ import annotations
 
@@ -31,14 +33,15 @@ from .clip import MotionClip
 from .geometry.rotations import matrix_to_quat, rotation_between, sixd_to_matrix
 from .io.bvh_export import write_bvh
 from .objects import DEFAULT_SIZES, ObjectSpec, local_to_world
-from .skeleton import CHILDREN, JOINT_NAMES, NUM_JOINTS, PARENTS
+from .skeleton import CHILDREN, JOINT_NAMES, NUM_JOINTS, PARENTS, rest_pose
 from .storyboard import AGENT_COLORS
 
 # glTF constants (glTF 2.0 specification, section 5).
-_FLOAT, _UINT32 = 5126, 5125
+_FLOAT, _UINT16, _UINT32 = 5126, 5123, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 _GLB_MAGIC, _JSON_CHUNK, _BIN_CHUNK = 0x46546C67, 0x4E4F534A, 0x004E4942
-_TYPES = {1: "SCALAR", 3: "VEC3", 4: "VEC4"}
+_TYPES = {1: "SCALAR", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
+_COMPONENTS = {np.dtype(np.float32): _FLOAT, np.dtype(np.uint16): _UINT16, np.dtype(np.uint32): _UINT32}
 
 BONE_RADIUS_SHARE = 0.8  # capsule radius as a share of the thinner end's collision radius
 OBJECT_COLOR = (0.6, 0.6, 0.62, 1.0)
@@ -131,7 +134,7 @@ class _GlbBuffer:
         self.accessors: list[dict] = []
 
     def add(self, array: np.ndarray, target: int | None = None, bounds: bool = False) -> int:
-        """array: (count,) or (count, 1|3|4), float32 or uint32. Returns the accessor index."""
+        """array: (count,) or (count, 1|3|4|16), float32, uint16 or uint32. Returns the accessor index."""
         array = np.ascontiguousarray(array)
         width = 1 if array.ndim == 1 else array.shape[1]
         self.data += b"\0" * (-len(self.data) % 4)
@@ -140,7 +143,7 @@ class _GlbBuffer:
             view["target"] = target
         self.data += array.tobytes()
         self.views.append(view)
-        accessor = {"bufferView": len(self.views) - 1, "componentType": _UINT32 if array.dtype == np.uint32 else _FLOAT,
+        accessor = {"bufferView": len(self.views) - 1, "componentType": _COMPONENTS[array.dtype],
                     "count": int(array.shape[0]), "type": _TYPES[width]}
         if bounds:  # required for POSITION attributes and animation inputs
             flat = array.reshape(len(array), width)
@@ -169,12 +172,31 @@ def _joint_mesh(offsets: np.ndarray, j: int):
     return trimesh.util.concatenate(parts)
 
 
-def _add_mesh(buf: _GlbBuffer, meshes: list[dict], mesh, material: int) -> int:
+def _add_mesh(buf: _GlbBuffer, meshes: list[dict], mesh, material: int, bones: np.ndarray | None = None) -> int:
+    """A trimesh as a glTF mesh; with `bones` (V,) each vertex is skinned wholly to that joint."""
     attributes = {"POSITION": buf.add(np.asarray(mesh.vertices, np.float32), _ARRAY_BUFFER, bounds=True),
                   "NORMAL": buf.add(np.asarray(mesh.vertex_normals, np.float32), _ARRAY_BUFFER)}
+    if bones is not None:
+        joints = np.zeros((len(bones), 4), np.uint16)
+        joints[:, 0] = bones
+        weights = np.zeros((len(bones), 4), np.float32)
+        weights[:, 0] = 1.0
+        attributes.update(JOINTS_0=buf.add(joints, _ARRAY_BUFFER), WEIGHTS_0=buf.add(weights, _ARRAY_BUFFER))
     indices = buf.add(np.asarray(mesh.faces, np.uint32).reshape(-1), _ELEMENT_ARRAY_BUFFER)
     meshes.append({"primitives": [{"attributes": attributes, "indices": indices, "material": material}]})
     return len(meshes) - 1
+
+
+def _body_mesh(offsets: np.ndarray) -> tuple[object, np.ndarray, np.ndarray]:
+    """(trimesh of the whole body in the rest pose, (V,) joint of each vertex, (22, 3) rest joint
+    positions) for a person with bone offsets (22, 3)."""
+    import trimesh
+    rest = rest_pose(offsets)
+    parts = [_joint_mesh(offsets, j) for j in range(NUM_JOINTS)]
+    for j, part in enumerate(parts):
+        part.apply_translation(rest[j])
+    bones = np.concatenate([np.full(len(part.vertices), j) for j, part in enumerate(parts)])
+    return trimesh.util.concatenate(parts), bones, rest
 
 
 def _continuous(quat_xyzw: np.ndarray) -> np.ndarray:
@@ -193,7 +215,7 @@ def _hex_rgba(color: str) -> list[float]:
 
 def gltf_document(clip: MotionClip) -> tuple[dict, bytes]:
     """The glTF JSON (dict) and binary buffer of the animated scene (see the module docstring).
-    Nodes: person h's joint j is node h * 22 + j, then one node per object."""
+    Nodes: person h is nodes h * 24 + (0: armature, 1 + j: joint j, 23: body), then the objects."""
     buf = _GlbBuffer()
     n, num_humans = clip.num_frames, clip.num_humans
     names = agent_names(num_humans)
@@ -204,6 +226,7 @@ def gltf_document(clip: MotionClip) -> tuple[dict, bytes]:
         "baseColorFactor": list(OBJECT_COLOR), "metallicFactor": 0.0, "roughnessFactor": 0.6}})
     meshes: list[dict] = []
     nodes: list[dict] = []
+    skins: list[dict] = []
     samplers: list[dict] = []
     channels: list[dict] = []
     times = buf.add((np.arange(n) / clip.fps).astype(np.float32), bounds=True)
@@ -215,20 +238,28 @@ def gltf_document(clip: MotionClip) -> tuple[dict, bytes]:
     offsets = clip.offsets().astype(float)
     rot = sixd_to_matrix(clip.rot6d.astype(float))                           # (N, H, 22, 3, 3)
     quat = np.roll(matrix_to_quat(rot), -1, axis=-1)                         # wxyz -> glTF xyzw
+    roots = []
     for h in range(num_humans):
+        first_joint = len(nodes) + 1
+        nodes.append({"name": names[h], "children": [first_joint]})
+        roots.append(len(nodes) - 1)
         for j in range(NUM_JOINTS):
-            node_index = h * NUM_JOINTS + j
             q = _continuous(quat[:, h, j])
             translation = clip.joints[0, h, 0] if PARENTS[j] < 0 else offsets[h, j]
-            nodes.append({"name": f"{names[h]}_{JOINT_NAMES[j]}",
-                          "translation": np.asarray(translation, float).tolist(), "rotation": q[0].tolist(),
-                          "mesh": _add_mesh(buf, meshes, _joint_mesh(offsets[h], j), h)})
+            nodes.append({"name": JOINT_NAMES[j], "translation": np.asarray(translation, float).tolist(),
+                          "rotation": q[0].tolist()})
             if CHILDREN[j]:
-                nodes[-1]["children"] = [h * NUM_JOINTS + c for c in CHILDREN[j]]
-            animate(node_index, "rotation", q)
+                nodes[-1]["children"] = [first_joint + c for c in CHILDREN[j]]
+            animate(first_joint + j, "rotation", q)
             if PARENTS[j] < 0:
-                animate(node_index, "translation", clip.joints[:, h, 0])
-    roots = [h * NUM_JOINTS for h in range(num_humans)]
+                animate(first_joint + j, "translation", clip.joints[:, h, 0])
+        body, bones, rest = _body_mesh(offsets[h])
+        bind = np.tile(np.eye(4, dtype=np.float32), (NUM_JOINTS, 1, 1))
+        bind[:, 3, :3] = -rest                         # inverse bind: the rest joint to the origin (column-major)
+        skins.append({"name": names[h], "joints": list(range(first_joint, first_joint + NUM_JOINTS)),
+                      "skeleton": first_joint, "inverseBindMatrices": buf.add(bind.reshape(NUM_JOINTS, 16))})
+        nodes.append({"name": f"{names[h]}_body", "mesh": _add_mesh(buf, meshes, body, h, bones), "skin": h})
+        roots.append(len(nodes) - 1)
     for o, (spec, oid) in enumerate(zip(object_specs(clip), _object_ids(object_specs(clip)))):
         pose = clip.obj_pose[:, o].astype(float)
         q = _continuous(np.roll(pose[:, 3:] / np.linalg.norm(pose[:, 3:], axis=-1, keepdims=True), -1, axis=-1))
@@ -237,12 +268,14 @@ def gltf_document(clip: MotionClip) -> tuple[dict, bytes]:
         roots.append(len(nodes) - 1)
         animate(len(nodes) - 1, "translation", pose[:, :3])
         animate(len(nodes) - 1, "rotation", q)
+    name = clip.scenario or "motion"
     document = {
         "asset": {"version": "2.0", "generator": "sketch2colab export_gltf",
                   "extras": {"fps": float(clip.fps), "frames": n, "scenario": clip.scenario}},
-        "scene": 0, "scenes": [{"name": clip.scenario or "motion", "nodes": roots}],
-        "nodes": nodes, "meshes": meshes, "materials": materials,
-        "animations": [{"name": clip.scenario or "motion", "samplers": samplers, "channels": channels}],
+        "scene": 0, "scenes": [{"name": name, "nodes": roots,
+                                "extras": {"frame_start": 0, "frame_end": n - 1, "fps": float(clip.fps)}}],
+        "nodes": nodes, "meshes": meshes, "materials": materials, "skins": skins,
+        "animations": [{"name": name, "samplers": samplers, "channels": channels}],
         "buffers": [{"byteLength": len(buf.data)}],
         "bufferViews": buf.views, "accessors": buf.accessors,
     }

@@ -18,7 +18,7 @@ import numpy as np
 from .atomic import write_text
 from .camera import StoryboardCamera
 from .objects import DEFAULT_SIZES, ObjectSpec
-from .skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
+from .skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, REST_PELVIS_HEIGHT
 
 FORMAT = "sketch2colab-storyboard"
 VERSION = 1
@@ -29,6 +29,7 @@ MAX_SECONDS = 120.0      # the longest clip the generator is asked for
 MAX_FILE_CHARS = 16_000_000  # a storyboard file; the largest real ones are a few hundred kB
 MAX_INTEGER = 10 ** 9    # frames, spans and anchors are far below; a longer number is an error
 SPANS = ("trajectories", "object_paths", "contacts")   # the Storyboard lists with start and end frames
+FLOOR_PATH_HEIGHT = REST_PELVIS_HEIGHT   # m: the height a floor-plan path is seen at from the camera
 
 
 class StoryboardError(ValueError):
@@ -54,6 +55,9 @@ class Keypose:
     frame: int
     points: np.ndarray  # (22, 2); rows where mask is False are ignored
     mask: np.ndarray    # (22,) bool: which joints the artist placed
+    hold: int = 0       # frames after `frame` the pose is held (until the agent's next key at most)
+    ease_in: bool = False    # the motion slows into the key (engine.finishing.ease)
+    ease_out: bool = False   # the motion starts slowly out of the key (after its hold)
 
 
 @dataclass
@@ -63,6 +67,16 @@ class Trajectory:
     start: int
     end: int
     points: np.ndarray  # (L, 2) polyline, L >= 2
+    floor: np.ndarray | None = None   # (L, 2) world (x, z) of a pelvis path drawn on the floor plan:
+                                      # exact where people walk; `points` is it seen from the camera
+                                      # at FLOOR_PATH_HEIGHT (floor_path_points)
+
+
+def floor_path_points(camera: StoryboardCamera, floor: np.ndarray) -> np.ndarray:
+    """Sketch-plane points (L, 2) of a floor-plan path (L, 2) of world (x, z), at a standing
+    pelvis's height (the sketch plane's v of a walking pelvis)."""
+    floor = np.asarray(floor, float)
+    return camera.project(np.stack([floor[:, 0], np.full(len(floor), FLOOR_PATH_HEIGHT), floor[:, 1]], -1))
 
 
 @dataclass
@@ -126,7 +140,8 @@ class Storyboard:
             return min(math.floor(frame * rate + 0.5), length - 1)
 
         return replace(self, fps=fps, length=length,
-                       keyposes=[replace(k, frame=at(k.frame)) for k in self.keyposes],
+                       keyposes=[replace(k, frame=at(k.frame), hold=at(k.frame + k.hold) - at(k.frame))
+                                 for k in self.keyposes],
                        object_keys=[replace(k, frame=at(k.frame)) for k in self.object_keys],
                        **{name: [replace(x, start=at(x.start), end=at(x.end)) for x in getattr(self, name)]
                           for name in SPANS})
@@ -137,7 +152,8 @@ class Storyboard:
         last = length - 1
         spans = {name: [replace(x, end=min(x.end, last)) for x in getattr(self, name) if x.start <= last]
                  for name in SPANS}
-        return replace(self, length=length, keyposes=[k for k in self.keyposes if k.frame <= last],
+        return replace(self, length=length, keyposes=[replace(k, hold=min(k.hold, last - k.frame))
+                                                      for k in self.keyposes if k.frame <= last],
                        object_keys=[k for k in self.object_keys if k.frame <= last], **spans)
 
     def keyframes(self) -> list[int]:
@@ -161,11 +177,8 @@ class Storyboard:
              "agents": [{"id": a.id, "name": a.name, "color": a.color} for a in self.agents],
              "objects": [{"id": o.id, "type": o.spec.type, "size": list(o.spec.size),
                           "anchors": _floats(o.spec.anchors)} for o in self.objects],
-             "keyposes": [{"agent": k.agent, "frame": k.frame,
-                           "points": [_floats(p) if m else None for p, m in zip(k.points, k.mask)]}
-                          for k in self.keyposes],
-             "trajectories": [{"agent": t.agent, "joint": t.joint, "start": t.start, "end": t.end,
-                               "points": _floats(t.points)} for t in self.trajectories],
+             "keyposes": [_keypose_dict(k) for k in self.keyposes],
+             "trajectories": [_trajectory_dict(t) for t in self.trajectories],
              "object_keys": [{"object": k.object, "frame": k.frame, "outline": _floats(k.outline)}
                              for k in self.object_keys],
              "object_paths": [{"object": p.object, "start": p.start, "end": p.end,
@@ -197,11 +210,13 @@ class Storyboard:
         for i, k in enumerate(d.get("keyposes", [])):
             mask = np.array([p is not None for p in k["points"]])
             pts = np.array([p if p is not None else (0.0, 0.0) for p in k["points"]], float)
-            sb.keyposes.append(Keypose(k["agent"], int(k["frame"]), pts, mask))
+            sb.keyposes.append(Keypose(k["agent"], int(k["frame"]), pts, mask, int(k.get("hold", 0)),
+                                       bool(k.get("ease_in", False)), bool(k.get("ease_out", False))))
         # The schema takes whole-number floats (5.0) as integers: they become ints here, once.
         for t in d.get("trajectories", []):
             sb.trajectories.append(Trajectory(t["agent"], t["joint"], int(t["start"]), int(t["end"]),
-                                              np.array(t["points"], float).reshape(-1, 2)))
+                                              np.array(t["points"], float).reshape(-1, 2),
+                                              np.array(t["floor"], float).reshape(-1, 2) if "floor" in t else None))
         for k in d.get("object_keys", []):
             sb.object_keys.append(ObjectKey(k["object"], int(k["frame"]), np.array(k["outline"], float).reshape(-1, 2)))
         for p in d.get("object_paths", []):
@@ -269,6 +284,9 @@ class Storyboard:
             w = f"keyposes[{i}]"
             ref(f"{w}.agent", k.agent, agents, "agent")
             frame(f"{w}.frame", k.frame)
+            if not 0 <= k.frame + k.hold < n:
+                raise StoryboardError(f"{w}.hold: held {k.hold} frames from frame {k.frame}, the pose "
+                                      f"runs past the clip's last frame {n - 1}")
             if k.points.shape != (NUM_JOINTS, 2):
                 raise StoryboardError(f"{w}.points: expected {NUM_JOINTS} joints, got {len(k.points)}")
             if not k.mask.any():
@@ -279,6 +297,8 @@ class Storyboard:
             ref(f"{w}.joint", t.joint, list(JOINT_NAMES), "joint")
             span(w, t.start, t.end)
             stroke(f"{w}.points", t.points, 2)
+            if t.floor is not None and (t.joint != "pelvis" or t.floor.shape != t.points.shape):
+                raise StoryboardError(f"{w}.floor: a floor path is the pelvis's, one floor point per stroke point")
         for i, k in enumerate(self.object_keys):
             w = f"object_keys[{i}]"
             ref(f"{w}.object", k.object, objects, "object")
@@ -319,6 +339,20 @@ def _floats(a) -> list:
     to micrometres, a reopened storyboard could generate other motion: a 1 um nudge of a stroke
     point moved joints by up to 22 cm)."""
     return np.asarray(a, float).tolist()
+
+
+def _keypose_dict(k: Keypose) -> dict:
+    d = {"agent": k.agent, "frame": k.frame, "points": [_floats(p) if m else None for p, m in zip(k.points, k.mask)]}
+    d.update({name: value for name, value in (("hold", k.hold), ("ease_in", k.ease_in), ("ease_out", k.ease_out))
+              if value})       # written only where set: an untimed storyboard reads as before
+    return d
+
+
+def _trajectory_dict(t: Trajectory) -> dict:
+    d = {"agent": t.agent, "joint": t.joint, "start": t.start, "end": t.end, "points": _floats(t.points)}
+    if t.floor is not None:
+        d["floor"] = _floats(t.floor)
+    return d
 
 
 def _contact_dict(c: Contact) -> dict:

@@ -4,6 +4,8 @@ The guided sampler brings the motion near the sketch; finishing, as an animator'
 would, makes it exact where a 2D sketch and physics say what is right, by small kinematic edits
 that keep each person's bone lengths:
 
+0. the motion retimed to the keys' timing: still through a key's hold, easing into and out of
+   keys marked so (timing.py);
 1. one skeleton per person (bone offsets fitted to the generated joints; the decoder predicts
    joints freely, so bones stretch a little from frame to frame);
 2. keyposes and pelvis paths, by motion warping (warp.py);
@@ -31,6 +33,7 @@ from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts
 from .feet import FeetConfig, lock_feet, settle_on_ground
 from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs
+from .timing import retime_to_keys, with_hold_ends
 from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
 
 TUNED_FPS = 20.0   # the configs' durations (their DURATIONS fields) are frames at this rate
@@ -77,7 +80,9 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
     """The clip (people in the storyboard's agent order) with its constraints made exact."""
     config = replace(config, **{part: lasting_as_long(getattr(config, part), clip.fps)
                                 for part in ("warp", "contact", "foot", "limbs")})
-    joints, offsets = consistent_skeleton(np.asarray(clip.joints, float), storyboard)
+    joints = retime_to_keys(np.asarray(clip.joints, float), storyboard)
+    storyboard = with_hold_ends(storyboard)
+    joints, offsets = consistent_skeleton(joints, storyboard)
     if config.keyposes:
         joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)
     if config.paths:

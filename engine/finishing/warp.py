@@ -177,24 +177,25 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
 
 def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig = WarpConfig()) -> np.ndarray:
     """People whose pelvis has a stroke walk on it: over the stroke's span the body moves so its
-    pelvis projects onto the nearest point of the stroke with the lower foot on the ground; the
-    offset is smoothed and fades out around the span. joints (N, H, 22, 3) -> same."""
+    pelvis is over the nearest point of the path drawn on the floor plan, or else projects onto
+    the nearest point of the sketched stroke, with the lower foot on the ground; the offset is
+    smoothed and fades out around the span. joints (N, H, 22, 3) -> same."""
     out = joints.copy()
     n, cam = len(joints), storyboard.camera
     level = abs(cam.basis()[2, 1]) <= LEVEL
     for stroke in storyboard.trajectories:
-        if stroke.joint != "pelvis" or level:
+        if stroke.joint != "pelvis" or (level and stroke.floor is None):
             continue
         h = storyboard.agent_index(stroke.agent)
         span = np.arange(stroke.start, min(stroke.end, n - 1) + 1)
         for _ in range(config.path_passes):
             pelvis = out[span, h, PELVIS]
-            uv = cam.project(pelvis)
-            off = closest_on_polyline(uv, stroke.points) - uv
-            dist = np.linalg.norm(off, axis=-1, keepdims=True)
-            on_stroke = uv + off * np.clip(1.0 - config.path_tolerance / np.maximum(dist, 1e-9), 0.0, None)
             height = pelvis[:, 1] + _grounding_height(out[span, h], config.foot_height)
-            lifted = cam.unproject_to_height(on_stroke, height)
+            if stroke.floor is not None:         # depth drawn: walk over the floor path itself
+                xz = _towards_path(pelvis[:, [0, 2]], stroke.floor, config.path_tolerance)
+                lifted = np.stack([xz[:, 0], height, xz[:, 1]], -1)
+            else:                                # depth from the camera ray, at the walking height
+                lifted = cam.unproject_to_height(_towards_path(cam.project(pelvis), stroke.points, config.path_tolerance), height)
             shift = gaussian_filter1d(lifted - pelvis, config.path_smoothing, axis=0, mode="nearest")
             # The span's offsets, held at its ends and faded out beyond them.
             full = spread(n, list(span), shift, config.falloff)
@@ -203,3 +204,10 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig 
                 full -= spread(n, keys, full[keys], config.falloff)
             out[:, h] += full[:, None, :]
     return out
+
+
+def _towards_path(points: np.ndarray, path: np.ndarray, tolerance: float) -> np.ndarray:
+    """Points (L, 2) moved onto the polyline path (M, 2), but only to within `tolerance` of it."""
+    off = closest_on_polyline(points, path) - points
+    dist = np.linalg.norm(off, axis=-1, keepdims=True)
+    return points + off * np.clip(1.0 - tolerance / np.maximum(dist, 1e-9), 0.0, None)

@@ -25,16 +25,21 @@ def test_the_window_fits_and_no_panel_overlaps_another(qtbot, make_window):
     window.showNormal()
     window.resize(LAPTOP_ROOM)
     qtbot.waitUntil(lambda: window.size() == LAPTOP_ROOM)
-    panels = {"canvas": window.canvas, **{d.objectName(): d for d in window.findChildren(QDockWidget)}}
-    rects = {name: _in_window(window, w) for name, w in panels.items()}
-    names = list(rects)
-    for i, a in enumerate(names):
-        assert window.rect().contains(rects[a]), a
-        for b in names[i + 1:]:
-            assert not rects[a].intersects(rects[b]), (a, b)
-    for dock in window.findChildren(QDockWidget):
-        inner, needed = dock.widget().size(), dock.widget().minimumSizeHint()
-        assert inner.width() >= needed.width() and inner.height() >= needed.height(), dock.objectName()
+    for front in (window.viewport_dock, window.floor_plan_dock):      # tabbed: each in turn in front
+        front.raise_()
+        qtbot.waitUntil(lambda: window.rect().contains(_in_window(window, front)))
+        behind = window.tabifiedDockWidgets(front)
+        panels = {"canvas": window.canvas, **{d.objectName(): d for d in window.findChildren(QDockWidget) if d not in behind}}
+        rects = {name: _in_window(window, w) for name, w in panels.items()}
+        names = list(rects)
+        for i, a in enumerate(names):
+            assert window.rect().contains(rects[a]), a
+            for b in names[i + 1:]:
+                assert not rects[a].intersects(rects[b]), (a, b)
+        for dock in panels.values():
+            if dock is not window.canvas:
+                inner, needed = dock.widget().size(), dock.widget().minimumSizeHint()
+                assert inner.width() >= needed.width() and inner.height() >= needed.height(), dock.objectName()
     assert window.canvas.width() >= 300 and window.canvas.height() >= 300
 
 
@@ -55,12 +60,14 @@ def test_the_layout_is_restored_on_the_next_start(qtbot, make_window):
     window = make_window()
     window.showNormal()
     window.resize(1200, 680)
-    window.resizeDocks([window.properties_dock], [460], Qt.Horizontal)
     window.viewport_dock.close()
+    window.floor_plan_dock.close()
+    window.resizeDocks([window.properties_dock], [460], Qt.Horizontal)
     qtbot.waitUntil(lambda: not window.viewport_dock.isVisible() and window.properties_dock.width() == 460)
     window.close()
 
     again = make_window()
     qtbot.waitExposed(again)
     assert again.size() == QSize(1200, 680)
-    assert not again.viewport_dock.isVisible() and again.properties_dock.width() == 460
+    assert not again.viewport_dock.isVisible() and not again.floor_plan_dock.isVisible()
+    assert again.properties_dock.width() == 460

@@ -144,3 +144,31 @@ def test_a_library_pose_is_stamped_where_the_figure_stands(qtbot, make_window):
         assert stamped.mask.all() and np.allclose(stamped.points[list(FEET)].mean(0), feet, atol=0.12)
     assert "wave" in doc.undo_stack.undoText().lower()
     assert stamped.points[J["r_wrist"], 1] > stamped.points[J["head"], 1]          # the hand is up
+
+
+def test_copy_a_pose_and_paste_it_on_the_other_agent_where_it_stands(qtbot, make_window):
+    from engine.skeleton import FEET
+    window = make_window()
+    doc, canvas = window.doc, window.canvas
+    window.activateWindow()
+    canvas.setFocus()
+    qtbot.waitUntil(canvas.hasFocus)
+    doc.set_frame(FRAME)
+    doc.set_tool("keypose")
+    for agent, u in (("A", -1.0), ("B", 1.0)):
+        doc.select(agent=agent)
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+    doc.select(agent="A")
+    window.stamp_pose("wave")
+    waving = cmd.find_keypose(doc.storyboard, "A", FRAME).points.copy()
+    qtbot.keyClick(canvas, Qt.Key_C, Qt.ControlModifier)
+    doc.select(agent="B")
+    b_feet = cmd.find_keypose(doc.storyboard, "B", FRAME).points[list(FEET)].mean(0)
+    qtbot.keyClick(canvas, Qt.Key_V, Qt.ControlModifier)
+    pasted = cmd.find_keypose(doc.storyboard, "B", FRAME).points
+    assert np.allclose(pasted[list(FEET)].mean(0), b_feet)                      # where B stood
+    assert np.allclose(pasted - pasted[0], waving - waving[0])                  # A's pose
+    assert doc.undo_stack.undoText() == "Paste pose"
+    doc.set_frame(FRAME + 20)                                                   # a frame B has no key at
+    qtbot.keyClick(canvas, Qt.Key_V, Qt.ControlModifier)
+    assert np.allclose(cmd.find_keypose(doc.storyboard, "B", FRAME + 20).points, pasted)

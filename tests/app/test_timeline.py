@@ -78,3 +78,35 @@ def test_empty_phase_strip_shows_a_hint(qtbot, doc):
     assert not strip.empty_hint.isVisible()
     strip.set_phase(None)
     assert strip.empty_hint.isVisible()
+
+
+def test_a_keys_hold_and_ease_are_set_in_properties_and_drawn_on_the_timeline(qtbot, make_window):
+    """Real keys in the Hold field and clicks on the Ease boxes; undo restores; the timeline
+    draws the hold as a bar in the agent's row."""
+    window = make_window()
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    doc, props = window.doc, window.properties
+    doc.set_frame(30)                                    # no key of A here: nothing to time
+    assert not props.hold.isEnabled()
+    doc.set_frame(60)
+    assert props.hold.isEnabled() and props.hold.maximum() == 58    # ends before A's key at 119
+    props.hold.setFocus()
+    qtbot.keyClick(props.hold, Qt.Key_A, Qt.ControlModifier)
+    qtbot.keyClicks(props.hold, "12")
+    qtbot.keyClick(props.hold, Qt.Key_Return)
+    qtbot.mouseClick(props.ease_in, Qt.LeftButton, pos=QPoint(8, props.ease_in.height() // 2))
+    key = cmd.find_keypose(doc.storyboard, "A", 60)
+    assert (key.hold, key.ease_in, key.ease_out) == (12, True, False)
+    again = type(doc.storyboard).from_json(doc.storyboard.to_json())
+    assert cmd.find_keypose(again, "A", 60).hold == 12
+    # The bar: the row's pixels between the key and the hold's end are the agent's colour.
+    timeline = window.timeline
+    image = timeline.grab().toImage()
+    row = next(i for i, t in enumerate(timeline.tracks()) if t.owner == "A")
+    y = RULER_H + row * ROW_H + ROW_H // 2
+    x = round(frame_to_x(66, doc.storyboard.length, timeline.width()))
+    assert image.pixelColor(x, y).name() != image.pixelColor(x, y - 6).name()
+    doc.undo_stack.undo()
+    doc.undo_stack.undo()
+    key = cmd.find_keypose(doc.storyboard, "A", 60)
+    assert (key.hold, key.ease_in) == (0, False) and props.hold.value() == 0

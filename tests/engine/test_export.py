@@ -1,9 +1,12 @@
 """Exports: NPZ round trip, one BVH per person read back, the object path CSV, and the animated
-glb (container layout, node hierarchy, animation accessors, forward kinematics of the animation
-reproducing the clip, trimesh reading the static scene)."""
+glb (container layout, one armature and skinned body per person, animation accessors, forward
+kinematics and skinning of the animation reproducing the clip, trimesh reading the static scene,
+Blender importing it where Blender is installed)."""
 import argparse
 import csv
 import json
+import shutil
+import subprocess
 import struct
 
 import numpy as np
@@ -92,18 +95,58 @@ def read_glb(path):
 def accessor_array(document, binary, index):
     acc = document["accessors"][index]
     view = document["bufferViews"][acc["bufferView"]]
-    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[acc["type"]]
-    dtype = np.float32 if acc["componentType"] == 5126 else np.uint32
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[acc["type"]]
+    dtype = {5126: np.float32, 5123: np.uint16, 5125: np.uint32}[acc["componentType"]]
     flat = np.frombuffer(binary, dtype, acc["count"] * width, view["byteOffset"])
     return flat.reshape(acc["count"], width)
 
 
-def test_glb_is_an_animated_scene(clip, tmp_path):
+def glb_playback(doc, binary, frame: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Play the glb back at a frame as a DCC tool does: joint world positions (H, 22, 3) by the
+    node tree's animated transforms, and each body mesh's (vertices (V, 3) by linear blend
+    skinning, the joint (V,) each is bound to)."""
+    animation, = doc["animations"]
+    local = {}
+    for ch in animation["channels"]:
+        value = accessor_array(doc, binary, animation["samplers"][ch["sampler"]]["output"])[frame].astype(float)
+        local[ch["target"]["node"], ch["target"]["path"]] = value
+    world = {}
+
+    def transform(node, parent):
+        m = np.eye(4)
+        m[:3, :3] = quat_to_matrix(np.roll(local.get((node, "rotation"), doc["nodes"][node].get("rotation", [0, 0, 0, 1])), 1))
+        m[:3, 3] = local.get((node, "translation"), doc["nodes"][node].get("translation", [0, 0, 0]))
+        world[node] = parent @ m
+        for child in doc["nodes"][node].get("children", []):
+            transform(child, world[node])
+
+    for root in doc["scenes"][0]["nodes"]:
+        transform(root, np.eye(4))
+    joints, bodies = [], []
+    for skin in doc["skins"]:
+        joints.append(np.array([world[j][:3, 3] for j in skin["joints"]]))
+        bind = accessor_array(doc, binary, skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1)
+        body = next(node for node in doc["nodes"] if node.get("skin") == doc["skins"].index(skin))
+        attributes = doc["meshes"][body["mesh"]]["primitives"][0]["attributes"]
+        positions = accessor_array(doc, binary, attributes["POSITION"]).astype(float)
+        bones = accessor_array(doc, binary, attributes["JOINTS_0"])[:, 0]
+        assert np.all(accessor_array(doc, binary, attributes["WEIGHTS_0"]) == [1, 0, 0, 0])
+        skinning = np.stack([world[j] @ bind[i] for i, j in enumerate(skin["joints"])])[bones]
+        bodies.append((np.einsum("vij,vj->vi", skinning[:, :3, :3], positions) + skinning[:, :3, 3], bones))
+    return np.stack(joints), bodies
+
+
+def test_glb_is_one_rig_per_person_with_a_skinned_body(clip, tmp_path):
     path = export_gltf(clip, tmp_path / "scene.glb")
     doc, binary = read_glb(path)
-    assert len(doc["nodes"]) == 2 * 22 + 1
-    assert doc["scenes"][0]["nodes"] == [0, 22, 44]
-    assert doc["nodes"][JOINT_INDEX["l_wrist"]]["name"] == "A_l_wrist" and doc["nodes"][44]["name"] == "box"
+    assert len(doc["nodes"]) == 2 * 24 + 1
+    assert doc["scenes"][0]["nodes"] == [0, 23, 24, 47, 48]          # armatures, bodies, the box
+    assert doc["scenes"][0]["extras"]["frame_end"] == FRAMES - 1
+    assert [doc["nodes"][i]["name"] for i in (0, 23, 24, 48)] == ["A", "A_body", "B", "box"]
+    for h, skin in enumerate(doc["skins"]):
+        assert [doc["nodes"][j]["name"] for j in skin["joints"]] == list(JOINT_NAMES)   # as in the BVH
+        assert [doc["nodes"][j].get("children", []) for j in skin["joints"]] == \
+            [[skin["joints"][c] for c, p in enumerate(PARENTS) if p == j] for j in range(22)]
     animation, = doc["animations"]
     # A rotation per joint, a translation per pelvis, translation + rotation for the box.
     assert len(animation["channels"]) == 2 * 22 + 2 + 2
@@ -114,38 +157,28 @@ def test_glb_is_an_animated_scene(clip, tmp_path):
     for s in animation["samplers"]:
         assert doc["accessors"][s["output"]]["count"] == FRAMES
 
-    # Play the animation back by forward kinematics over the node tree: it must be the clip.
-    trans = np.array([[doc["nodes"][h * 22 + j]["translation"] for j in range(22)] for h in range(2)])
-    rot = np.zeros((FRAMES, 2, 22, 3, 3))
-    root = np.zeros((FRAMES, 2, 3))
-    for ch in animation["channels"]:
-        node, values = ch["target"]["node"], accessor_array(doc, binary, animation["samplers"][ch["sampler"]]["output"])
-        if node >= 44:
-            continue
-        h, j = divmod(node, 22)
-        if ch["target"]["path"] == "rotation":
-            rot[:, h, j] = quat_to_matrix(np.roll(values.astype(float), 1, axis=-1))  # xyzw -> wxyz
-        else:
-            root[:, h] = values
-    for h in range(2):
-        assert [doc["nodes"][h * 22 + j].get("children", []) for j in range(22)] == \
-            [[h * 22 + c for c, p in enumerate(PARENTS) if p == j] for j in range(22)]
-        np.testing.assert_allclose(forward_kinematics(root[:, h], rot[:, h], trans[h]), clip.joints[:, h], atol=1e-4)
+    # Played back, the rig is the clip, and each body vertex keeps its place on its bone.
+    reach = None
+    for frame in (0, FRAMES // 2, FRAMES - 1):
+        joints, bodies = glb_playback(doc, binary, frame)
+        np.testing.assert_allclose(joints, clip.joints[frame], atol=1e-4)
+        # a vertex's distance to its joint is the same in every frame, and within its bone
+        distances = [np.linalg.norm(body - clip.joints[frame, h][bones], axis=1) for h, (body, bones) in enumerate(bodies)]
+        reach = distances if reach is None else reach
+        for d, d0, (_, bones) in zip(distances, reach, bodies):
+            np.testing.assert_allclose(d, d0, atol=1e-4)
+            assert d.max() < 0.6 and all(d[bones == j].min() < 0.15 for j in range(22))
     box_rot = [accessor_array(doc, binary, animation["samplers"][ch["sampler"]]["output"])
-               for ch in animation["channels"] if ch["target"] == {"node": 44, "path": "rotation"}][0]
+               for ch in animation["channels"] if ch["target"] == {"node": 48, "path": "rotation"}][0]
     assert np.all(np.sum(box_rot[1:] * box_rot[:-1], axis=1) > 0)  # one hemisphere: short-arc playback
 
 
-def test_trimesh_reads_the_glb_at_frame_zero(clip, tmp_path):
+def test_trimesh_reads_the_glb(clip, tmp_path):
     import trimesh
     scene = trimesh.load(export_gltf(clip, tmp_path / "scene.glb"))
-    assert isinstance(scene, trimesh.Scene) and len(scene.geometry) == 2 * 22 + 1
-    for h, agent in enumerate("AB"):
-        for name in ("l_wrist", "r_foot", "head"):
-            transform, _ = scene.graph.get(f"{agent}_{name}")
-            np.testing.assert_allclose(transform[:3, 3], clip.joints[0, h, JOINT_INDEX[name]], atol=1e-4)
+    assert isinstance(scene, trimesh.Scene) and len(scene.geometry) == 2 + 1      # two bodies and the box
     lo, hi = scene.bounds
-    assert lo[1] > -0.1 and hi[1] < 2.0  # people stand on the ground, no stray geometry
+    assert lo[1] > -0.2 and hi[1] < 2.2                      # bodies in their rest pose, standing
 
 
 def test_command_line_options_run_the_exports(clip, tmp_path):
@@ -156,3 +189,43 @@ def test_command_line_options_run_the_exports(clip, tmp_path):
     written = export_requested(clip, args)
     assert sorted(p.name for p in written) == ["m.npz", "o.csv", "person_A.bvh", "person_B.bvh", "s.glb"]
     assert all(p.exists() for p in written)
+
+
+BLENDER_SCRIPT = '''
+import bpy, json, sys
+import numpy
+if not hasattr(numpy, "bool"):   # Debian 12's Blender 3.4 glTF importer still uses an alias numpy 1.24 removed
+    numpy.bool = bool
+bpy.ops.wm.read_factory_settings(use_empty=True)
+scene = bpy.context.scene
+scene.render.fps = 20            # the importer places keys at time * the scene's rate
+bpy.ops.import_scene.gltf(filepath=sys.argv[-2])
+armatures = [o for o in scene.objects if o.type == "ARMATURE"]
+out = {"armatures": [a.name for a in armatures],
+       "meshes": {o.name: [o.parent.name if o.parent else None, [m.type for m in o.modifiers]]
+                  for o in scene.objects if o.type == "MESH"},
+       "action_ranges": [list(a.frame_range) for a in bpy.data.actions],
+       "frame_end": scene.get("frame_end"), "positions": {}}
+for frame in (0, 13, 29):
+    scene.frame_set(frame)
+    out["positions"][frame] = [{b.name: list(a.matrix_world @ b.head) for b in a.pose.bones} for a in armatures]
+json.dump(out, open(sys.argv[-1], "w"))
+'''
+
+
+@pytest.mark.skipif(shutil.which("blender") is None,
+                    reason="Blender is not installed (apt-get install blender python3-numpy to run this check)")
+def test_blender_imports_one_armature_per_person_playing_the_clip(clip, tmp_path):
+    (tmp_path / "read.py").write_text(BLENDER_SCRIPT)
+    glb, result = export_gltf(clip, tmp_path / "scene.glb"), tmp_path / "blender.json"
+    subprocess.run(["blender", "-b", "--factory-startup", "--python", str(tmp_path / "read.py"), "--", str(glb), str(result)],
+                   check=True, capture_output=True, timeout=300)
+    out = json.loads(result.read_text())
+    assert out["armatures"] == ["A", "B"]
+    assert out["meshes"] == {"A_body": ["A", ["ARMATURE"]], "B_body": ["B", ["ARMATURE"]], "box": [None, []]}
+    assert all(r == [0, FRAMES - 1] for r in out["action_ranges"]) and out["frame_end"] == FRAMES - 1
+    for frame, people in out["positions"].items():
+        for h, bones in enumerate(people):
+            assert sorted(bones) == sorted(JOINT_NAMES)
+            blender = np.array([bones[name] for name in JOINT_NAMES])           # Blender is Z up
+            np.testing.assert_allclose(blender[:, [0, 2, 1]] * (1, 1, -1), clip.joints[int(frame), h], atol=1e-4)

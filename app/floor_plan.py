@@ -1,0 +1,223 @@
+"""The floor plan: the storyboard seen from above, where people stand and walk on the floor.
+
+The sketch gives depth only through the camera's slant (20 degrees: a hand's wobble of 2 cm up
+the page is 6 cm in depth), so here it is drawn instead. The plan is turned like the storyboard
+camera: right is the camera's right, up is away from the camera (drawn at the bottom).
+
+- Each keypose is a disc where its feet stand (its frame beside it; the playhead's is ringed).
+  Dragging a disc moves the figure on the floor: its sketch moves as the camera sees that move.
+- Dragging on the floor draws the selected person's walk (a pelvis path over the timeline's span,
+  or the whole clip), kept in floor coordinates (Trajectory.floor) so the generator walks it
+  exactly; drawing again over the same span replaces it.
+- Sketched pelvis paths are shown dashed, at the height a walking pelvis has.
+"""
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import QPointF, QRectF, Qt, Signal
+from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
+from PySide6.QtWidgets import QWidget
+
+from engine.skeleton import FEET
+from engine.storyboard import FLOOR_PATH_HEIGHT, Keypose, Storyboard, Trajectory, floor_path_points
+
+from . import commands as cmd
+from .document import Document
+from .strokes import clean_stroke
+
+DISC_R = 7.0          # px
+GRID_M = 1.0          # metres between grid lines
+
+
+def standing_place(sb: Storyboard, key: Keypose) -> np.ndarray:
+    """World (x, z) where a keypose stands: under its feet, else under its pelvis."""
+    feet = list(FEET)
+    if key.mask[feet].all():
+        return sb.camera.unproject_to_height(key.points[feet], 0.0).mean(0)[[0, 2]]
+    placed = key.points[0] if key.mask[0] else key.points[key.mask].mean(0)
+    return sb.camera.unproject_to_height(placed, FLOOR_PATH_HEIGHT)[[0, 2]]
+
+
+def moved_on_floor(sb: Storyboard, points: np.ndarray, step_xz: np.ndarray) -> np.ndarray:
+    """A keypose's sketch points (22, 2) after the figure moves by step_xz (2,) on the floor."""
+    return points + sb.camera.basis()[:2] @ np.array([step_xz[0], 0.0, step_xz[1]])
+
+
+class FloorPlan(QWidget):
+    message = Signal(str)
+
+    def __init__(self, document: Document, parent: QWidget | None = None):
+        super().__init__(parent)
+        self._doc = document
+        self.zoom = 60.0                      # px per metre
+        self.centre = np.zeros(2)             # plan (right, away) coordinates at the widget's centre
+        self._drag: tuple[str, object, list[np.ndarray]] | None = None   # ("figure", key, [xz...]) | ("walk", None, [xz...])
+        self.setMinimumSize(160, 140)
+        self.setMouseTracking(False)
+        for signal in (document.storyboardChanged, document.frameChanged, document.selectionChanged):
+            signal.connect(self.update)
+        document.replaced.connect(self.fit)
+
+    # ---- geometry ------------------------------------------------------------------------------
+    def _axes(self) -> np.ndarray:
+        """(2, 2) rows: the plan's right and away directions as world (x, z)."""
+        right, _, back = self._doc.storyboard.camera.basis()
+        away = -np.array([back[0], back[2]])
+        return np.stack([right[[0, 2]], away / max(np.linalg.norm(away), 1e-9)])
+
+    def to_px(self, xz: np.ndarray) -> np.ndarray:
+        plan = (np.asarray(xz, float) @ self._axes().T - self.centre) * self.zoom
+        return np.array([self.width() / 2, self.height() / 2]) + plan * (1.0, -1.0)
+
+    def to_xz(self, px) -> np.ndarray:
+        plan = (np.asarray(px, float) - (self.width() / 2, self.height() / 2)) * (1.0, -1.0) / self.zoom + self.centre
+        return plan @ self._axes()        # the axes are orthonormal: their inverse is the transpose
+
+    def fit(self) -> None:
+        """Frame every keypose and path, with a margin."""
+        points = [p for p in self._content() if len(p)]
+        if points:
+            plan = np.concatenate(points) @ self._axes().T
+            lo, hi = plan.min(0) - 0.8, plan.max(0) + 0.8
+            self.centre = (lo + hi) / 2
+            self.zoom = float(np.clip(min(self.width() / (hi - lo)[0], self.height() / (hi - lo)[1]), 20.0, 300.0))
+        self.update()
+
+    def _content(self) -> list[np.ndarray]:
+        sb = self._doc.storyboard
+        return [np.array([standing_place(sb, k) for k in sb.keyposes]).reshape(-1, 2)] + \
+            [self._walk(t) for t in sb.trajectories if t.joint == "pelvis"]
+
+    def _walk(self, t: Trajectory) -> np.ndarray:
+        """A pelvis path's points on the floor (L, 2)."""
+        if t.floor is not None:
+            return t.floor
+        return self._doc.storyboard.camera.unproject_to_height(t.points, FLOOR_PATH_HEIGHT)[:, [0, 2]]
+
+    def _key_at(self, px) -> Keypose | None:
+        sb = self._doc.storyboard
+        hits = [(np.linalg.norm(self.to_px(standing_place(sb, k)) - px), k) for k in sb.keyposes]
+        hits = [(d - 2 * (k.frame == self._doc.frame), k) for d, k in hits if d <= DISC_R + 3]
+        return min(hits, key=lambda h: h[0])[1] if hits else None
+
+    # ---- mouse -----------------------------------------------------------------------------------
+    def mousePressEvent(self, event):
+        if event.button() != Qt.LeftButton:
+            return
+        px = np.array([event.position().x(), event.position().y()])
+        key = self._key_at(px)
+        if key is not None:
+            self._doc.select(agent=key.agent)
+            self._doc.set_frame(key.frame)
+            self._drag = ("figure", key, [self.to_xz(px)] * 2)
+        else:
+            self._drag = ("walk", None, [self.to_xz(px)])
+
+    def mouseMoveEvent(self, event):
+        if self._drag is None:
+            return
+        xz = self.to_xz([event.position().x(), event.position().y()])
+        kind, _, points = self._drag
+        if kind == "figure":
+            points[-1] = xz
+        else:
+            points.append(xz)
+        self.update()
+
+    def mouseReleaseEvent(self, event):
+        drag, self._drag = self._drag, None
+        if drag is None:
+            return
+        kind, key, points = drag
+        if kind == "figure":
+            step = points[-1] - points[0]
+            if np.linalg.norm(step) * self.zoom >= 1:
+                self._doc.undo_stack.push(cmd.SetKeypose(self._doc, key.agent, key.frame,
+                                                         moved_on_floor(self._doc.storyboard, key.points, step),
+                                                         key.mask, "Move on the floor plan"))
+        elif np.ptp(np.array(points), axis=0).max() * self.zoom >= 4:
+            self._draw_walk(clean_stroke(np.array(points)))
+        self.update()
+
+    def _draw_walk(self, floor: np.ndarray) -> None:
+        """The selected person's pelvis path over the span, from floor points (L, 2)."""
+        doc, sb = self._doc, self._doc.storyboard
+        agent = doc.selection.agent
+        start, end = doc.span_or((0, sb.length - 1))
+        walk = Trajectory(agent, "pelvis", start, end, floor_path_points(sb.camera, floor), floor)
+        for i, t in enumerate(sb.trajectories):
+            if t.agent != agent or t.joint != "pelvis" or t.end < start or end < t.start:
+                continue
+            if (t.start, t.end) != (start, end):
+                self.message.emit(f"{agent}'s walk already covers frames {t.start}-{t.end}: select those "
+                                  "frames on the timeline to redraw it, or frames it does not cover.")
+                return
+            doc.undo_stack.push(cmd.ReplaceStroke(doc, "trajectories", i, walk, "Redraw walk on the floor plan"))
+            return
+        doc.undo_stack.push(cmd.AddStroke(doc, "trajectories", walk, "Draw walk on the floor plan"))
+
+    def wheelEvent(self, event):
+        px = np.array([event.position().x(), event.position().y()])
+        before = self.to_xz(px)
+        self.zoom = float(np.clip(self.zoom * 1.0015 ** event.angleDelta().y(), 20.0, 300.0))
+        self.centre += (before - self.to_xz(px)) @ self._axes().T
+        self.update()
+
+    # ---- painting --------------------------------------------------------------------------------
+    def paintEvent(self, event):
+        p = QPainter(self)
+        p.setRenderHint(QPainter.Antialiasing)
+        p.fillRect(self.rect(), QColor("#fbfaf7"))
+        self._paint_grid(p)
+        sb, doc = self._doc.storyboard, self._doc
+        colors = {a.id: QColor(a.color) for a in sb.agents}
+        for t in sb.trajectories:
+            if t.joint == "pelvis":
+                pen = QPen(colors[t.agent], 2.2 if t.floor is not None else 1.4)
+                pen.setStyle(Qt.SolidLine if t.floor is not None else Qt.DashLine)
+                p.setPen(pen)
+                p.setBrush(Qt.NoBrush)
+                p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._walk(t)]))
+        moving = self._drag[1] if self._drag and self._drag[0] == "figure" else None
+        for k in sorted(sb.keyposes, key=lambda k: k.frame):
+            xz = standing_place(sb, k)
+            if k is moving:
+                xz = xz + self._drag[2][-1] - self._drag[2][0]
+            x, y = self.to_px(xz)
+            current = k.frame == doc.frame and k.agent == doc.selection.agent
+            p.setPen(QPen(QColor("#1d1d1d") if current else colors[k.agent].darker(150), 2.4 if current else 1))
+            p.setBrush(colors[k.agent])
+            p.drawEllipse(QPointF(x, y), DISC_R, DISC_R)
+            p.setPen(QColor("#3a3a3a"))
+            p.drawText(QPointF(x + DISC_R + 2, y - 2), f"{k.agent} {k.frame}")
+        if self._drag and self._drag[0] == "walk" and len(self._drag[2]) > 1:
+            p.setPen(QPen(colors.get(doc.selection.agent, QColor("#333")), 2))
+            p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._drag[2]]))
+        self._paint_camera(p)
+        p.end()
+
+    def _paint_grid(self, p: QPainter) -> None:
+        """World grid lines every GRID_M metres over the visible floor, the axes darker."""
+        corners = np.array([self.to_xz(c) for c in ((0, 0), (self.width(), 0), (0, self.height()),
+                                                    (self.width(), self.height()))])
+        lo, hi = np.floor(corners.min(0) / GRID_M), np.ceil(corners.max(0) / GRID_M)
+        for axis in (0, 1):
+            for i in np.arange(lo[axis], hi[axis] + 1):
+                a, b = np.empty(2), np.empty(2)
+                a[axis] = b[axis] = i * GRID_M
+                a[1 - axis], b[1 - axis] = lo[1 - axis] * GRID_M, hi[1 - axis] * GRID_M
+                p.setPen(QPen(QColor("#c9c4b8" if i == 0 else "#e6e2d8"), 1))
+                p.drawLine(QPointF(*self.to_px(a)), QPointF(*self.to_px(b)))
+
+    def _paint_camera(self, p: QPainter) -> None:
+        """The storyboard camera below the plan, looking up into it."""
+        x, y = self.width() / 2, self.height() - 8
+        path = QPainterPath(QPointF(x, y - 12))
+        path.lineTo(QPointF(x - 8, y))
+        path.lineTo(QPointF(x + 8, y))
+        path.closeSubpath()
+        p.setPen(Qt.NoPen)
+        p.setBrush(QColor("#8a857a"))
+        p.drawPath(path)
+        p.setPen(QColor("#8a857a"))
+        p.drawText(QRectF(x + 12, y - 14, 120, 16), Qt.AlignLeft | Qt.AlignVCenter, "storyboard camera")

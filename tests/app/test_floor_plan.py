@@ -1,0 +1,73 @@
+"""The floor plan (app/floor_plan.py) by real mouse events: a figure dragged on the floor moves
+its sketch as the camera sees it; a walk drawn on the floor is the pelvis path, kept in floor
+coordinates, replaced when drawn again over the same frames, refused over other frames."""
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, Qt
+
+from app import commands as cmd
+from app.document import Document
+from app.floor_plan import FloorPlan, standing_place
+from engine.storyboard import floor_path_points
+
+from .fakes import sample_storyboard
+
+
+@pytest.fixture
+def plan(qtbot):
+    doc = Document(sample_storyboard())
+    widget = FloorPlan(doc)
+    widget.resize(500, 400)
+    qtbot.addWidget(widget)
+    widget.show()
+    qtbot.waitExposed(widget)
+    widget.fit()
+    return widget, doc
+
+
+def px(widget, xz) -> QPoint:
+    x, y = widget.to_px(np.asarray(xz, float))
+    return QPoint(round(x), round(y))
+
+
+def drag(qtbot, widget, points):
+    qtbot.mousePress(widget, Qt.LeftButton, Qt.NoModifier, points[0])
+    for p in points[1:]:
+        qtbot.mouseMove(widget, p)
+    qtbot.mouseRelease(widget, Qt.LeftButton, Qt.NoModifier, points[-1])
+
+
+def test_dragging_a_figure_moves_where_it_stands(qtbot, plan):
+    widget, doc = plan
+    key = cmd.find_keypose(doc.storyboard, "B", 60)
+    start = standing_place(doc.storyboard, key)
+    target = start + (0.0, 1.0)                                  # a metre back along world z
+    drag(qtbot, widget, [px(widget, start), px(widget, start + (0.0, 0.5)), px(widget, target)])
+    moved = cmd.find_keypose(doc.storyboard, "B", 60)
+    assert doc.selection.agent == "B" and doc.frame == 60
+    assert np.linalg.norm(standing_place(doc.storyboard, moved) - target) < 2.5 / widget.zoom
+    bones = lambda p: np.linalg.norm(np.diff(p, axis=0), axis=1)
+    assert np.allclose(bones(moved.points), bones(key.points))  # the figure moves whole
+    assert doc.undo_stack.undoText() == "Move on the floor plan"
+
+
+def test_a_walk_drawn_on_the_floor_is_the_pelvis_path(qtbot, plan):
+    widget, doc = plan
+    doc.select(agent="A")
+    index = next(i for i, t in enumerate(doc.storyboard.trajectories) if t.agent == "A" and t.joint == "pelvis")
+    count = len(doc.storyboard.trajectories)
+    walk = [np.array([x, 2.0 + 0.1 * np.sin(3 * x)]) for x in np.linspace(-1.5, 1.0, 15)]
+    drag(qtbot, widget, [px(widget, p) for p in walk])        # no span: the whole clip, A's path replaced
+    path = doc.storyboard.trajectories[index]
+    assert len(doc.storyboard.trajectories) == count
+    assert (path.agent, path.joint, path.start, path.end) == ("A", "pelvis", 0, 119) and path.floor is not None
+    assert np.allclose(path.points, floor_path_points(doc.storyboard.camera, path.floor))
+    assert np.linalg.norm(path.floor[0] - walk[0]) < 0.05 and np.linalg.norm(path.floor[-1] - walk[-1]) < 0.05
+    assert doc.undo_stack.undoText() == "Redraw walk on the floor plan"
+    messages = []
+    widget.message.connect(messages.append)
+    doc.set_span((40, 80))                                        # overlapping other frames: refused
+    drag(qtbot, widget, [px(widget, p + (0.0, 1.0)) for p in walk])
+    assert len(doc.storyboard.trajectories) == count and "already covers frames 0-119" in messages[0]
+    doc.undo_stack.undo()
+    assert doc.storyboard.trajectories[index].floor is None       # the sketched path is back
