@@ -57,20 +57,24 @@ def find_keypose(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
 
 # ---- keyposes -------------------------------------------------------------------------------
 class SetKeypose(StoryboardCommand):
-    """Add a keypose (or replace the one at that agent and frame). points (22, 2), mask (22,)."""
+    """Add a keypose (or replace the one at that agent and frame). points (22, 2), mask (22,),
+    depth (22,) where known (Keypose.depth; None keeps the replaced key's)."""
     touches = ("keyposes",)
 
     def __init__(self, document, agent: str, frame: int, points: np.ndarray, mask: np.ndarray,
-                 text: str = "Add keypose"):
+                 text: str = "Add keypose", depth: np.ndarray | None = None):
         super().__init__(document, text)
         self._agent, self._frame = agent, frame
         self._points, self._mask = np.array(points, float), np.array(mask, bool)
+        self._depth = None if depth is None else np.array(depth, float)
 
     def apply(self, sb):
         old = find_keypose(sb, self._agent, self._frame)
-        timing = (old.hold, old.ease_in, old.ease_out) if old is not None else ()   # a new pose keeps its timing
+        timing = (old.hold, old.ease_in, old.ease_out) if old is not None else (0, False, False)  # kept
+        depth = self._depth if self._depth is not None or old is None else old.depth
         sb.keyposes = [k for k in sb.keyposes if k is not old]
-        sb.keyposes.append(Keypose(self._agent, self._frame, self._points.copy(), self._mask.copy(), *timing))
+        sb.keyposes.append(Keypose(self._agent, self._frame, self._points.copy(), self._mask.copy(), *timing,
+                                   None if depth is None else depth.copy()))
 
 
 class SetKeyTiming(StoryboardCommand):
@@ -129,6 +133,8 @@ class MirrorKeypose(StoryboardCommand):
         points, mask = k.points[list(MIRROR)].copy(), k.mask[list(MIRROR)].copy()
         points[:, 0] = 2 * centre - points[:, 0]
         k.points, k.mask = points, mask
+        if k.depth is not None:
+            k.depth = k.depth[list(MIRROR)].copy()
 
 
 class DeleteKeypose(StoryboardCommand):

@@ -4,8 +4,11 @@ The sketch gives depth only through the camera's slant (20 degrees: a hand's wob
 the page is 6 cm in depth), so here it is drawn instead. The plan is turned like the storyboard
 camera: right is the camera's right, up is away from the camera (drawn at the bottom).
 
-- Each keypose is a disc where its feet stand (its frame beside it; the playhead's is ringed).
-  Dragging a disc moves the figure on the floor: its sketch moves as the camera sees that move.
+- Each keypose is a disc where its feet stand (its frame beside it; the playhead's is ringed),
+  with an arrow the way it faces (dashed while its depth is only guessed: the sketch alone cannot
+  tell a figure facing the camera from one facing away). Dragging a disc moves the figure on the
+  floor, dragging the arrow's tip turns it about the vertical (engine.facing): its sketch changes
+  as the camera sees it.
 - Dragging on the floor draws the selected person's walk (a pelvis path over the timeline's span,
   or the whole clip), kept in floor coordinates (Trajectory.floor) so the generator walks it
   exactly; drawing again over the same span replaces it.
@@ -18,7 +21,9 @@ from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QWidget
 
-from engine.skeleton import FEET
+from engine.facing import depth_of, facing, lift, turned
+from engine.skeleton import FEET, JOINT_INDEX
+from engine.synth.reach import heading_of
 from engine.storyboard import FLOOR_PATH_HEIGHT, Keypose, Storyboard, Trajectory, floor_path_points
 
 from . import commands as cmd
@@ -27,6 +32,8 @@ from .strokes import clean_stroke
 
 DISC_R = 7.0          # px
 GRID_M = 1.0          # metres between grid lines
+ARROW_M = 0.45        # length of a facing arrow on the floor
+TURNABLE = list(FEET) + [JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]]   # joints a facing is read from
 
 
 def standing_place(sb: Storyboard, key: Keypose) -> np.ndarray:
@@ -51,7 +58,7 @@ class FloorPlan(QWidget):
         self._doc = document
         self.zoom = 60.0                      # px per metre
         self.centre = np.zeros(2)             # plan (right, away) coordinates at the widget's centre
-        self._drag: tuple[str, object, list[np.ndarray]] | None = None   # ("figure", key, [xz...]) | ("walk", None, [xz...])
+        self._drag: tuple[str, object, list[np.ndarray]] | None = None   # (figure | turn | walk, key, [xz...])
         self.setMinimumSize(160, 140)
         self.setMouseTracking(False)
         for signal in (document.storyboardChanged, document.frameChanged, document.selectionChanged):
@@ -94,6 +101,36 @@ class FloorPlan(QWidget):
             return t.floor
         return self._doc.storyboard.camera.unproject_to_height(t.points, FLOOR_PATH_HEIGHT)[:, [0, 2]]
 
+    def _depth(self, key: Keypose) -> np.ndarray | None:
+        """The key's depths (engine.facing): its own, else the generated pose's at its frame."""
+        doc = self._doc
+        if key.depth is not None or not doc.clips:
+            return key.depth
+        joints = doc.clips[min(doc.variation, len(doc.clips) - 1)].joints
+        h = doc.storyboard.agent_index(key.agent)
+        if h >= joints.shape[1]:
+            return None
+        return depth_of(np.asarray(joints[min(key.frame, len(joints) - 1), h], float), doc.storyboard.camera)
+
+    def _yaw(self, key: Keypose) -> float | None:
+        """Which way the keypose faces (engine.facing), None when its feet or hips are not placed."""
+        if not key.mask[TURNABLE].all():
+            return None
+        return facing(lift(key.points, self._doc.storyboard.camera, self._depth(key)))
+
+    def _tip(self, key: Keypose) -> np.ndarray | None:
+        yaw = self._yaw(key)
+        if yaw is None:
+            return None
+        return standing_place(self._doc.storyboard, key) + ARROW_M * np.array([np.sin(yaw), np.cos(yaw)])
+
+    def _tip_at(self, px) -> Keypose | None:
+        for k in self._doc.storyboard.keyposes:
+            tip = self._tip(k)
+            if tip is not None and np.linalg.norm(self.to_px(tip) - px) <= 6:
+                return k
+        return None
+
     def _key_at(self, px) -> Keypose | None:
         sb = self._doc.storyboard
         hits = [(np.linalg.norm(self.to_px(standing_place(sb, k)) - px), k) for k in sb.keyposes]
@@ -105,11 +142,12 @@ class FloorPlan(QWidget):
         if event.button() != Qt.LeftButton:
             return
         px = np.array([event.position().x(), event.position().y()])
-        key = self._key_at(px)
+        turning = self._tip_at(px)
+        key = turning or self._key_at(px)
         if key is not None:
             self._doc.select(agent=key.agent)
             self._doc.set_frame(key.frame)
-            self._drag = ("figure", key, [self.to_xz(px)] * 2)
+            self._drag = ("turn" if turning else "figure", key, [self.to_xz(px)] * 2)
         else:
             self._drag = ("walk", None, [self.to_xz(px)])
 
@@ -118,7 +156,7 @@ class FloorPlan(QWidget):
             return
         xz = self.to_xz([event.position().x(), event.position().y()])
         kind, _, points = self._drag
-        if kind == "figure":
+        if kind in ("figure", "turn"):
             points[-1] = xz
         else:
             points.append(xz)
@@ -135,9 +173,20 @@ class FloorPlan(QWidget):
                 self._doc.undo_stack.push(cmd.SetKeypose(self._doc, key.agent, key.frame,
                                                          moved_on_floor(self._doc.storyboard, key.points, step),
                                                          key.mask, "Move on the floor plan"))
+        elif kind == "turn":
+            yaw = self._turned_yaw(key, points[-1])
+            if abs(yaw - self._yaw(key)) > 1e-3:
+                points, depth = turned(key.points, self._doc.storyboard.camera, yaw - self._yaw(key), self._depth(key))
+                self._doc.undo_stack.push(cmd.SetKeypose(self._doc, key.agent, key.frame, points, key.mask,
+                                                         "Turn on the floor plan", depth))
         elif np.ptp(np.array(points), axis=0).max() * self.zoom >= 4:
             self._draw_walk(clean_stroke(np.array(points)))
         self.update()
+
+    def _turned_yaw(self, key: Keypose, pointer_xz: np.ndarray) -> float:
+        """The facing the pointer asks for: from where the figure stands towards the pointer."""
+        towards = pointer_xz - standing_place(self._doc.storyboard, key)
+        return float(heading_of(np.array([towards[0], 0.0, towards[1]])))
 
     def _draw_walk(self, floor: np.ndarray) -> None:
         """The selected person's pelvis path over the span, from floor points (L, 2)."""
@@ -184,6 +233,7 @@ class FloorPlan(QWidget):
             if k is moving:
                 xz = xz + self._drag[2][-1] - self._drag[2][0]
             x, y = self.to_px(xz)
+            self._paint_arrow(p, k, xz, colors[k.agent])
             current = k.frame == doc.frame and k.agent == doc.selection.agent
             p.setPen(QPen(QColor("#1d1d1d") if current else colors[k.agent].darker(150), 2.4 if current else 1))
             p.setBrush(colors[k.agent])
@@ -195,6 +245,26 @@ class FloorPlan(QWidget):
             p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._drag[2]]))
         self._paint_camera(p)
         p.end()
+
+    def _paint_arrow(self, p: QPainter, key: Keypose, xz: np.ndarray, color: QColor) -> None:
+        """The way the keypose faces, as an arrow from its disc (towards the pointer while turned);
+        dashed where the figure's depth is a guess (no stamped or turned pose, no motion yet)."""
+        yaw = self._yaw(key)
+        if yaw is None:
+            return
+        if self._drag and self._drag[0] == "turn" and self._drag[1] is key:
+            yaw = self._turned_yaw(key, self._drag[2][-1])
+        ahead = np.array([np.sin(yaw), np.cos(yaw)])
+        start, tip = self.to_px(xz), self.to_px(xz + ARROW_M * ahead)
+        along = (tip - start) / max(np.linalg.norm(tip - start), 1e-9)
+        side = np.array([-along[1], along[0]])
+        pen = QPen(color.darker(130), 1.8)
+        if self._depth(key) is None:
+            pen.setStyle(Qt.DashLine)
+        p.setPen(pen)
+        p.drawLine(QPointF(*start), QPointF(*tip))
+        p.setBrush(color.darker(130))
+        p.drawPolygon(QPolygonF([QPointF(*tip), QPointF(*(tip - 8 * along + 4 * side)), QPointF(*(tip - 8 * along - 4 * side))]))
 
     def _paint_grid(self, p: QPainter) -> None:
         """World grid lines every GRID_M metres over the visible floor, the axes darker."""

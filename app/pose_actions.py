@@ -3,7 +3,8 @@ copy and paste a pose between keys and agents, mirror, stamp a pose of the libra
 through one undoable command."""
 from __future__ import annotations
 
-from engine.poses import POSE_NAMES
+from engine.facing import depth_of
+from engine.poses import POSE_NAMES, library_pose
 
 from . import commands as cmd
 from .poses import placed_pose, previous_keypose, stamped_pose
@@ -12,7 +13,7 @@ from .timeline import delete_keyframe
 
 class PoseActions:
     """Needs self.doc (Document) and self.statusBar() (QMainWindow)."""
-    _copied_pose = None          # (points (22, 2), mask (22,)) of Copy Pose, for Paste Pose
+    _copied_pose = None          # (points (22, 2), mask (22,), depth (22,) | None) of Copy Pose
 
     def copy_previous_keypose(self) -> None:
         doc = self.doc
@@ -22,7 +23,7 @@ class PoseActions:
             self.statusBar().showMessage(f"Agent {agent} has no keypose before frame {doc.frame}.", 5000)
             return
         doc.undo_stack.push(cmd.SetKeypose(doc, agent, doc.frame, previous.points, previous.mask,
-                                           f"Copy keypose from frame {previous.frame}"))
+                                           f"Copy keypose from frame {previous.frame}", previous.depth))
 
     def copy_pose(self) -> None:
         doc = self.doc
@@ -30,7 +31,7 @@ class PoseActions:
         if key is None:
             self.statusBar().showMessage("No keypose at the playhead to copy.", 5000)
             return
-        self._copied_pose = (key.points.copy(), key.mask.copy())
+        self._copied_pose = (key.points.copy(), key.mask.copy(), key.depth)
         self.statusBar().showMessage(f"Copied {doc.selection.agent}'s pose at frame {doc.frame}: "
                                      "paste it on any agent and frame (M mirrors it).", 5000)
 
@@ -40,8 +41,9 @@ class PoseActions:
         if self._copied_pose is None:
             self.statusBar().showMessage("Copy a keypose first (Edit > Copy Pose).", 5000)
             return
-        points, mask = placed_pose(doc.storyboard, doc.selection.agent, doc.frame, *self._copied_pose)
-        doc.undo_stack.push(cmd.SetKeypose(doc, doc.selection.agent, doc.frame, points, mask, "Paste pose"))
+        points, mask, depth = self._copied_pose
+        points, mask = placed_pose(doc.storyboard, doc.selection.agent, doc.frame, points, mask)
+        doc.undo_stack.push(cmd.SetKeypose(doc, doc.selection.agent, doc.frame, points, mask, "Paste pose", depth))
 
     def mirror_keypose(self) -> None:
         doc = self.doc
@@ -53,7 +55,8 @@ class PoseActions:
     def stamp_pose(self, name: str) -> None:
         doc = self.doc
         points, mask = stamped_pose(doc.storyboard, doc.selection.agent, doc.frame, name)
-        doc.undo_stack.push(cmd.SetKeypose(doc, doc.selection.agent, doc.frame, points, mask, f"Stamp pose: {name}"))
+        depth = depth_of(library_pose(name), doc.storyboard.camera)     # the library knows its 3D
+        doc.undo_stack.push(cmd.SetKeypose(doc, doc.selection.agent, doc.frame, points, mask, f"Stamp pose: {name}", depth))
 
     def delete_keypose(self) -> None:
         doc = self.doc

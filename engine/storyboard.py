@@ -58,6 +58,9 @@ class Keypose:
     hold: int = 0       # frames after `frame` the pose is held (until the agent's next key at most)
     ease_in: bool = False    # the motion slows into the key (engine.finishing.ease)
     ease_out: bool = False   # the motion starts slowly out of the key (after its hold)
+    depth: np.ndarray | None = None   # (22,) m in front of (-) or behind (+) the feet, horizontally
+                                      # along the view, where known (a library pose, a turned
+                                      # figure: engine.facing); the sketch alone does not say
 
 
 @dataclass
@@ -211,7 +214,8 @@ class Storyboard:
             mask = np.array([p is not None for p in k["points"]])
             pts = np.array([p if p is not None else (0.0, 0.0) for p in k["points"]], float)
             sb.keyposes.append(Keypose(k["agent"], int(k["frame"]), pts, mask, int(k.get("hold", 0)),
-                                       bool(k.get("ease_in", False)), bool(k.get("ease_out", False))))
+                                       bool(k.get("ease_in", False)), bool(k.get("ease_out", False)),
+                                       np.array(k["depth"], float) if "depth" in k else None))
         # The schema takes whole-number floats (5.0) as integers: they become ints here, once.
         for t in d.get("trajectories", []):
             sb.trajectories.append(Trajectory(t["agent"], t["joint"], int(t["start"]), int(t["end"]),
@@ -289,6 +293,8 @@ class Storyboard:
                                       f"runs past the clip's last frame {n - 1}")
             if k.points.shape != (NUM_JOINTS, 2):
                 raise StoryboardError(f"{w}.points: expected {NUM_JOINTS} joints, got {len(k.points)}")
+            if k.depth is not None and k.depth.shape != (NUM_JOINTS,):
+                raise StoryboardError(f"{w}.depth: expected {NUM_JOINTS} depths, got {len(k.depth)}")
             if not k.mask.any():
                 raise StoryboardError(f"{w}.points: no joint is placed")
         for i, t in enumerate(self.trajectories):
@@ -345,6 +351,8 @@ def _keypose_dict(k: Keypose) -> dict:
     d = {"agent": k.agent, "frame": k.frame, "points": [_floats(p) if m else None for p, m in zip(k.points, k.mask)]}
     d.update({name: value for name, value in (("hold", k.hold), ("ease_in", k.ease_in), ("ease_out", k.ease_out))
               if value})       # written only where set: an untimed storyboard reads as before
+    if k.depth is not None:
+        d["depth"] = _floats(k.depth)
     return d
 
 

@@ -1,6 +1,7 @@
 """The floor plan (app/floor_plan.py) by real mouse events: a figure dragged on the floor moves
 its sketch as the camera sees it; a walk drawn on the floor is the pelvis path, kept in floor
-coordinates, replaced when drawn again over the same frames, refused over other frames."""
+coordinates, replaced when drawn again over the same frames, refused over other frames; its
+arrow's tip dragged turns the figure where it stands."""
 import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, Qt
@@ -8,6 +9,8 @@ from PySide6.QtCore import QPoint, Qt
 from app import commands as cmd
 from app.document import Document
 from app.floor_plan import FloorPlan, standing_place
+from engine.facing import depth_of, facing, lift
+from engine.poses import library_pose
 from engine.storyboard import floor_path_points
 
 from .fakes import sample_storyboard
@@ -71,3 +74,25 @@ def test_a_walk_drawn_on_the_floor_is_the_pelvis_path(qtbot, plan):
     assert len(doc.storyboard.trajectories) == count and "already covers frames 0-119" in messages[0]
     doc.undo_stack.undo()
     assert doc.storyboard.trajectories[index].floor is None       # the sketched path is back
+
+
+def test_dragging_the_arrow_turns_the_figure_where_it_stands(qtbot, plan):
+    widget, doc = plan
+    key = cmd.find_keypose(doc.storyboard, "B", 60)
+    sb = doc.storyboard
+    doc.undo_stack.push(cmd.SetKeypose(doc, "B", 60, key.points, key.mask, depth=depth_of(library_pose("stand"), sb.camera)))
+    key = cmd.find_keypose(sb, "B", 60)
+    before = facing(lift(key.points, sb.camera, key.depth))
+    place = standing_place(sb, key)
+    tip = place + 0.45 * np.array([np.sin(before), np.cos(before)])
+    quarter = before + np.pi / 2
+    target = place + 0.45 * np.array([np.sin(quarter), np.cos(quarter)])
+    middle = place + 0.45 * np.array([np.sin(before + 0.8), np.cos(before + 0.8)])
+    drag(qtbot, widget, [px(widget, tip), px(widget, middle), px(widget, target)])
+    turned_key = cmd.find_keypose(sb, "B", 60)
+    after = facing(lift(turned_key.points, sb.camera, turned_key.depth))
+    assert abs(np.angle(np.exp(1j * (after - quarter)))) < 0.06           # a quarter turn, to a pixel
+    assert np.linalg.norm(standing_place(sb, turned_key) - place) < 0.01   # turned where it stands
+    assert doc.undo_stack.undoText() == "Turn on the floor plan"
+    again = type(sb).from_json(sb.to_json())
+    assert np.allclose(cmd.find_keypose(again, "B", 60).depth, turned_key.depth)   # the turn is saved
