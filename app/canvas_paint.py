@@ -9,9 +9,12 @@ from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPen, QPolygon
 
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
+from . import commands as cmd
 from .document import OBJECT_PATH
+from .poses import key_facing, known_depth
 
 LABEL_MARGIN_PX = 3.0   # labels keep this far from the canvas edges
+FACING_M = 0.35         # length on the floor of the arrow the way a keypose faces
 PAPER = QColor("#f6f4ef")
 GRID = QColor("#d9d5cc")
 GRID_AXIS = QColor("#bdb7aa")
@@ -181,6 +184,7 @@ class CanvasPainting:
             color = QColor(agent.color)
             active = agent.id == sel.agent
             self._stick_lines(p, points, mask, QPen(color, 3.2 if active else 2.2, Qt.SolidLine, Qt.RoundCap))
+            self._paint_facing(p, cmd.find_keypose(sb, agent.id, frame), points, color)
             px = self.to_px(points)
             if mask[JOINT_INDEX["head"]]:
                 p.setPen(QPen(color, 2.2))
@@ -200,6 +204,18 @@ class CanvasPainting:
             p.setPen(color.darker(120))
             top = px[JOINT_INDEX["head"]] if mask[JOINT_INDEX["head"]] else px[mask].min(axis=0)
             self._draw_label(p, QPointF(top[0] - 4, top[1] - 0.1 * self.zoom - 8), agent.name or agent.id)
+
+    def _paint_facing(self, p: QPainter, key, points: np.ndarray, color: QColor):
+        """An arrow on the floor from under the figure's feet the way it faces (engine.facing);
+        dashed while the figure's depth is a guess."""
+        found = key_facing(self._doc, key, points)
+        if found is None:
+            return
+        yaw, ground = found
+        camera = self._doc.storyboard.camera
+        ahead = ground + FACING_M * np.array([np.sin(yaw), 0.0, np.cos(yaw)])
+        start, tip = self.to_px(camera.project(np.stack([ground, ahead])))
+        draw_arrow(p, start, tip, color.darker(120), dashed=known_depth(self._doc, key) is None)
 
     def _paint_contacts(self, p: QPainter):
         for c in self._doc.storyboard.contacts:
@@ -237,6 +253,17 @@ class CanvasPainting:
             text += f"   \u00b7   agent {doc.selection.agent}, {doc.selection.joint}"
         p.setPen(QColor("#6b665c"))
         p.drawText(QPointF(12, 20), text)
+
+
+def draw_arrow(p: QPainter, start: np.ndarray, tip: np.ndarray, color: QColor, dashed: bool = False) -> None:
+    """A line from start to tip (px, (2,)) with an arrowhead at the tip."""
+    along = (tip - start) / max(np.linalg.norm(tip - start), 1e-9)
+    side = np.array([-along[1], along[0]])
+    p.setPen(QPen(color, 1.7, Qt.DashLine if dashed else Qt.SolidLine))
+    p.drawLine(QPointF(*start), QPointF(*tip))
+    p.setPen(QPen(color, 1.0))
+    p.setBrush(color)
+    p.drawPolygon(QPolygonF([QPointF(*tip), QPointF(*(tip - 8 * along + 4 * side)), QPointF(*(tip - 8 * along - 4 * side))]))
 
 
 def fit_inside(box: QRectF, bounds: QRectF) -> QRectF:

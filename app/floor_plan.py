@@ -21,19 +21,20 @@ from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QWidget
 
-from engine.facing import depth_of, facing, lift, turned
-from engine.skeleton import FEET, JOINT_INDEX
+from engine.facing import turned
+from engine.skeleton import FEET
 from engine.synth.reach import heading_of
 from engine.storyboard import FLOOR_PATH_HEIGHT, Keypose, Storyboard, Trajectory, floor_path_points
 
 from . import commands as cmd
+from .canvas_paint import draw_arrow
 from .document import Document
+from .poses import key_facing, known_depth
 from .strokes import clean_stroke
 
 DISC_R = 7.0          # px
 GRID_M = 1.0          # metres between grid lines
 ARROW_M = 0.45        # length of a facing arrow on the floor
-TURNABLE = list(FEET) + [JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]]   # joints a facing is read from
 
 
 def standing_place(sb: Storyboard, key: Keypose) -> np.ndarray:
@@ -101,22 +102,9 @@ class FloorPlan(QWidget):
             return t.floor
         return self._doc.storyboard.camera.unproject_to_height(t.points, FLOOR_PATH_HEIGHT)[:, [0, 2]]
 
-    def _depth(self, key: Keypose) -> np.ndarray | None:
-        """The key's depths (engine.facing): its own, else the generated pose's at its frame."""
-        doc = self._doc
-        if key.depth is not None or not doc.clips:
-            return key.depth
-        joints = doc.clips[min(doc.variation, len(doc.clips) - 1)].joints
-        h = doc.storyboard.agent_index(key.agent)
-        if h >= joints.shape[1]:
-            return None
-        return depth_of(np.asarray(joints[min(key.frame, len(joints) - 1), h], float), doc.storyboard.camera)
-
     def _yaw(self, key: Keypose) -> float | None:
-        """Which way the keypose faces (engine.facing), None when its feet or hips are not placed."""
-        if not key.mask[TURNABLE].all():
-            return None
-        return facing(lift(key.points, self._doc.storyboard.camera, self._depth(key)))
+        found = key_facing(self._doc, key)
+        return None if found is None else found[0]
 
     def _tip(self, key: Keypose) -> np.ndarray | None:
         yaw = self._yaw(key)
@@ -176,7 +164,8 @@ class FloorPlan(QWidget):
         elif kind == "turn":
             yaw = self._turned_yaw(key, points[-1])
             if abs(yaw - self._yaw(key)) > 1e-3:
-                points, depth = turned(key.points, self._doc.storyboard.camera, yaw - self._yaw(key), self._depth(key))
+                points, depth = turned(key.points, self._doc.storyboard.camera, yaw - self._yaw(key),
+                                       known_depth(self._doc, key))
                 self._doc.undo_stack.push(cmd.SetKeypose(self._doc, key.agent, key.frame, points, key.mask,
                                                          "Turn on the floor plan", depth))
         elif np.ptp(np.array(points), axis=0).max() * self.zoom >= 4:
@@ -255,16 +244,8 @@ class FloorPlan(QWidget):
         if self._drag and self._drag[0] == "turn" and self._drag[1] is key:
             yaw = self._turned_yaw(key, self._drag[2][-1])
         ahead = np.array([np.sin(yaw), np.cos(yaw)])
-        start, tip = self.to_px(xz), self.to_px(xz + ARROW_M * ahead)
-        along = (tip - start) / max(np.linalg.norm(tip - start), 1e-9)
-        side = np.array([-along[1], along[0]])
-        pen = QPen(color.darker(130), 1.8)
-        if self._depth(key) is None:
-            pen.setStyle(Qt.DashLine)
-        p.setPen(pen)
-        p.drawLine(QPointF(*start), QPointF(*tip))
-        p.setBrush(color.darker(130))
-        p.drawPolygon(QPolygonF([QPointF(*tip), QPointF(*(tip - 8 * along + 4 * side)), QPointF(*(tip - 8 * along - 4 * side))]))
+        draw_arrow(p, self.to_px(xz), self.to_px(xz + ARROW_M * ahead), color.darker(130),
+                   dashed=known_depth(self._doc, key) is None)
 
     def _paint_grid(self, p: QPainter) -> None:
         """World grid lines every GRID_M metres over the visible floor, the axes darker."""

@@ -1,11 +1,13 @@
 """Starting points for new keyposes: the standing template (engine.poses), a copy of the
-previous keyframe, a pose of the library or a copied pose placed where the figure stands."""
+previous keyframe, a pose of the library or a copied pose placed where the figure stands; which
+way a keypose faces."""
 from __future__ import annotations
 
 import numpy as np
 
+from engine.facing import depth_of, facing, lift
 from engine.poses import library_pose_2d, standing_pose_2d
-from engine.skeleton import FEET
+from engine.skeleton import FEET, JOINT_INDEX
 from engine.storyboard import Keypose, Storyboard
 
 
@@ -48,3 +50,26 @@ def placed_pose(sb: Storyboard, agent: str, frame: int, points: np.ndarray, mask
     else:
         shift = np.zeros(2)
     return points + shift, mask.copy()
+
+
+TURNABLE = list(FEET) + [JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]]   # joints a facing is read from
+
+
+def known_depth(doc, key: Keypose) -> np.ndarray | None:
+    """The key's depths (engine.facing): its own, else the shown motion's at its frame, else None."""
+    if key.depth is not None or not doc.clips:
+        return key.depth
+    joints = doc.clips[min(doc.variation, len(doc.clips) - 1)].joints
+    h = doc.storyboard.agent_index(key.agent)
+    if h >= joints.shape[1]:
+        return None
+    return depth_of(np.asarray(joints[min(key.frame, len(joints) - 1), h], float), doc.storyboard.camera)
+
+
+def key_facing(doc, key: Keypose, points: np.ndarray | None = None) -> tuple[float, np.ndarray] | None:
+    """(yaw, world (3,) point under the feet) of a keypose (its points, or `points` (22, 2) while
+    dragged); None when its feet or hips are not placed."""
+    if not key.mask[TURNABLE].all():
+        return None
+    joints = lift(key.points if points is None else points, doc.storyboard.camera, known_depth(doc, key))
+    return facing(joints), joints[list(FEET)].mean(0) * (1.0, 0.0, 1.0)
