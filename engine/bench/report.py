@@ -144,6 +144,9 @@ def _targets_section(targets: dict) -> str:
     return "\n".join(out).rstrip()
 
 
+STAGE_ORDER = ("conditioning", "network", "planning", "guidance", "decode", "finishing")
+
+
 def _speed_section(speed: dict, labels: dict) -> str:
     per = speed["per_method"]
     base = per.get("ours", {})
@@ -164,6 +167,13 @@ def _speed_section(speed: dict, labels: dict) -> str:
                     f"{labels[k]} {ddpm / f['wall_s']:.1f}x" + (
                         f" ({'met' if ddpm / f['wall_s'] >= SPEEDUP_TARGETS[k] else 'not met'})" if k in SPEEDUP_TARGETS else "")
                     for k, f in _in_order(per, labels) if k != "teacher_ddpm" and f.get("wall_s"))]
+    staged = [(k, f) for k, f in _in_order(per, labels) if f.get("stage_s")]
+    if staged:    # where the time goes: the sampler's own clock (engine.sampling.events.StageClock)
+        stages = [s for s in STAGE_ORDER if any(s in f["stage_s"] for _, f in staged)]
+        rows = [[labels[k]] + [fmt(f["stage_s"].get(s, 0.0)) for s in stages]
+                + [fmt(f["wall_s"] - sum(f["stage_s"].values()))] for k, f in staged]
+        out += ["", "Where the time goes (s, medians; rest: streaming the steps, the solver's arithmetic, "
+                "setting up):", "", table(["Method", *stages, "rest"], rows)]
     busy = speed.get("busy")
     if busy:
         rows = [[name, fmt(busy[key]["wall_s"]), fmt(busy[key]["first_step_s"]), str(busy[key]["repeats"])]

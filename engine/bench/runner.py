@@ -81,6 +81,7 @@ class Generation:
     first_step_s: float
     network_evals: int
     trace: list[tuple[float, np.ndarray, dict[str, float]]] = field(default_factory=list)
+    stage_s: dict[str, float] = field(default_factory=dict)   # GenerationResult.stage_s
 
 
 @dataclass
@@ -125,7 +126,8 @@ def generate(bundle, method: Method, storyboard: Storyboard, seed: int = 0, vari
                 steps.append((event.t, event.latent, dict(event.energies)))
     except StopIteration as stop:
         result = stop.value
-    return Generation(result.clips, result.wall_time_s, result.first_step_s, result.network_evals, steps)
+    return Generation(result.clips, result.wall_time_s, result.first_step_s, result.network_evals, steps,
+                      result.stage_s)
 
 
 def sample_metrics(clip: MotionClip, item: BenchItem) -> dict[str, float]:

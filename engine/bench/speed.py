@@ -101,15 +101,18 @@ def _timed_run(bundle, method: Method, storyboard: Storyboard, seed: int, index=
         g = generate(bundle, method, storyboard, seed=seed, index=index)
         wall = time.perf_counter() - start
     return {"wall_s": wall, "first_step_s": g.first_step_s, "peak_rss_mib": rss.peak_delta / 2 ** 20,
-            "network_evals": g.network_evals}
+            "network_evals": g.network_evals, "stage_s": g.stage_s}
 
 
 def _medians(runs: list[dict[str, float]]) -> dict[str, float]:
-    """Median wall time, first-step time and peak RSS of runs of one method; its evaluations."""
+    """Median wall time, first-step time, peak RSS and time per sampler stage of runs of one
+    method; its evaluations."""
+    stages = runs[-1].get("stage_s", {})
     return {"wall_s": statistics.median(r["wall_s"] for r in runs),
             "first_step_s": statistics.median(r["first_step_s"] for r in runs),
             "network_evals": runs[-1]["network_evals"],
-            "peak_rss_mib": statistics.median(r["peak_rss_mib"] for r in runs), "repeats": len(runs)}
+            "peak_rss_mib": statistics.median(r["peak_rss_mib"] for r in runs), "repeats": len(runs),
+            "stage_s": {k: statistics.median(r.get("stage_s", {}).get(k, 0.0) for r in runs) for k in stages}}
 
 
 def measure(bundle, method: Method, storyboard: Storyboard, repeats: int, index=None) -> dict[str, float]:

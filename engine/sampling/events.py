@@ -5,6 +5,8 @@ returns (StopIteration.value) a GenerationResult. Closing the generator cancels 
 """
 from __future__ import annotations
 
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Callable
@@ -38,3 +40,19 @@ class GenerationResult:
     wall_time_s: float
     first_step_s: float          # time from the call to the first StepEvent
     network_evals: int
+    stage_s: dict[str, float] = field(default_factory=dict)   # where the time went (StageClock)
+
+
+class StageClock:
+    """Seconds one generation spends in each named stage: `with clock("network"): ...`."""
+
+    def __init__(self):
+        self.seconds: dict[str, float] = {}
+
+    @contextmanager
+    def __call__(self, stage: str):
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[stage] = self.seconds.get(stage, 0.0) + time.perf_counter() - start

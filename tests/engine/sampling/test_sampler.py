@@ -57,6 +57,9 @@ def test_streams_one_event_per_step_then_the_result(bundle, storyboard):
     clip = result.clips[0]
     assert np.isfinite(clip.joints).all() and clip.contact.shape == (120, 2, 2)
     assert result.network_evals == 8 and result.first_step_s <= result.wall_time_s
+    stages = result.stage_s                     # where the time went, within the wall time
+    assert {"conditioning", "network", "planning", "guidance", "finishing"} <= set(stages)
+    assert all(v > 0 for v in stages.values()) and sum(stages.values()) <= result.wall_time_s
 
 
 def test_same_seed_same_motion_other_seed_other(bundle, storyboard):
