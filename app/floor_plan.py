@@ -16,6 +16,8 @@ camera: right is the camera's right, up is away from the camera (drawn at the bo
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
@@ -53,6 +55,8 @@ def moved_on_floor(sb: Storyboard, points: np.ndarray, step_xz: np.ndarray) -> n
 
 class FloorPlan(QWidget):
     message = Signal(str)
+    dragged = Signal(object)   # Storyboard: a copy with the figure drag in progress applied
+    dragEnded = Signal()       # a figure drag was released (its edit is in the document)
 
     def __init__(self, document: Document, parent: QWidget | None = None):
         super().__init__(parent)
@@ -143,34 +147,48 @@ class FloorPlan(QWidget):
         if self._drag is None:
             return
         xz = self.to_xz([event.position().x(), event.position().y()])
-        kind, _, points = self._drag
+        kind, key, points = self._drag
         if kind in ("figure", "turn"):
             points[-1] = xz
+            edit = self._figure_edit()
+            if edit is not None:          # the storyboard as it would be, for the live preview
+                dragged = copy.deepcopy(self._doc.storyboard)
+                edit.apply(dragged)
+                self.dragged.emit(dragged)
         else:
             points.append(xz)
         self.update()
 
     def mouseReleaseEvent(self, event):
+        edit = self._figure_edit()
         drag, self._drag = self._drag, None
         if drag is None:
             return
         kind, key, points = drag
-        if kind == "figure":
-            step = points[-1] - points[0]
-            if np.linalg.norm(step) * self.zoom >= 1:
-                self._doc.undo_stack.push(cmd.SetKeypose(self._doc, key.agent, key.frame,
-                                                         moved_on_floor(self._doc.storyboard, key.points, step),
-                                                         key.mask, "Move on the floor plan"))
-        elif kind == "turn":
-            yaw = self._turned_yaw(key, points[-1])
-            if abs(yaw - self._yaw(key)) > 1e-3:
-                points, depth = turned(key.points, self._doc.storyboard.camera, yaw - self._yaw(key),
-                                       known_depth(self._doc, key))
-                self._doc.undo_stack.push(cmd.SetKeypose(self._doc, key.agent, key.frame, points, key.mask,
-                                                         "Turn on the floor plan", depth))
+        if kind in ("figure", "turn"):
+            if edit is not None:
+                self._doc.undo_stack.push(edit)
+            self.dragEnded.emit()
         elif np.ptp(np.array(points), axis=0).max() * self.zoom >= 4:
             self._draw_walk(clean_stroke(np.array(points)))
         self.update()
+
+    def _figure_edit(self) -> cmd.SetKeypose | None:
+        """The edit the figure drag in progress makes (None before it has moved)."""
+        if self._drag is None or self._drag[0] not in ("figure", "turn"):
+            return None
+        kind, key, points = self._drag
+        if kind == "figure":
+            step = points[-1] - points[0]
+            if np.linalg.norm(step) * self.zoom < 1:
+                return None
+            return cmd.SetKeypose(self._doc, key.agent, key.frame, moved_on_floor(self._doc.storyboard, key.points, step),
+                                  key.mask, "Move on the floor plan")
+        angle = self._turned_yaw(key, points[-1]) - self._yaw(key)
+        if abs(angle) <= 1e-3:
+            return None
+        turned_points, depth = turned(key.points, self._doc.storyboard.camera, angle, known_depth(self._doc, key))
+        return cmd.SetKeypose(self._doc, key.agent, key.frame, turned_points, key.mask, "Turn on the floor plan", depth)
 
     def _turned_yaw(self, key: Keypose, pointer_xz: np.ndarray) -> float:
         """The facing the pointer asks for: from where the figure stands towards the pointer."""

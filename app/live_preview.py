@@ -1,6 +1,6 @@
-"""Motion that follows the pointer: while a joint or an object is dragged, previews of the dragged
-storyboard regenerate on the preview student (engine.models.preview); on release the full
-generation follows.
+"""Motion that follows the pointer: while a joint or an object is dragged on the canvas, or a
+figure moved or turned on the floor plan, previews of the dragged storyboard regenerate on the
+preview student (engine.models.preview); on release the full generation follows.
 
 Pointer moves arrive far faster than previews finish (~0.1 s each here), so they are coalesced:
 the first move of a burst starts a short timer and, when it fires, the newest dragged storyboard
@@ -14,7 +14,6 @@ from PySide6.QtCore import QObject, QSettings, QTimer
 
 from engine.storyboard import Storyboard
 
-from .canvas import SketchCanvas
 from .generation import GenerationSettings
 from .session import GenerationSession
 
@@ -23,8 +22,9 @@ COALESCE_MS = 15     # moves within this long of the first of a burst become one
 
 
 class LivePreview(QObject):
-    def __init__(self, canvas: SketchCanvas, session: GenerationSession, settings: Callable[[], GenerationSettings],
+    def __init__(self, views, session: GenerationSession, settings: Callable[[], GenerationSettings],
                  generate: Callable[[], None], preferences: QSettings, parent: QObject | None = None):
+        """views: the widgets whose `dragged(Storyboard)` and `dragEnded()` signals drive it."""
         super().__init__(parent)
         self._session, self._settings, self._generate, self._preferences = session, settings, generate, preferences
         self.enabled = str(preferences.value(ENABLED_KEY, "true")).lower() == "true"
@@ -34,8 +34,9 @@ class LivePreview(QObject):
         self._timer.setSingleShot(True)
         self._timer.setInterval(COALESCE_MS)
         self._timer.timeout.connect(self._send)
-        canvas.dragged.connect(self._on_dragged)
-        canvas.dragEnded.connect(self._on_released)
+        for view in views:
+            view.dragged.connect(self._on_dragged)
+            view.dragEnded.connect(self._on_released)
 
     def set_enabled(self, on: bool) -> None:
         self.enabled = bool(on)

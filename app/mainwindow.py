@@ -94,8 +94,8 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.viewport = Viewport()
         self.viewport.empty_hint = "No motion yet.\nSketch, then press \u25b6 Generate (Ctrl+Enter)."
         self.properties = PropertiesPanel(self.doc)
-        self.live_preview = LivePreview(self.canvas, self.session, self.generation_settings, self.generate,
-                                        self.settings, self)
+        self.live_preview = LivePreview((self.canvas, self.floor_plan), self.session, self.generation_settings,
+                                        self.generate, self.settings, self)
         self._build_actions()
         self._shortcuts_first = WindowShortcutsFirst(self)
         self._build_docks()

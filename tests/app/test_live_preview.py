@@ -77,3 +77,33 @@ def test_live_preview_can_be_switched_off(qtbot, make_window):
     assert not window.live_preview.enabled
     drag_wrist(qtbot, window, [np.array([0.05, 0.0]), np.array([0.1, 0.0])])
     assert sampler.asked == []
+
+
+def test_moving_a_figure_on_the_floor_plan_previews_it(qtbot, make_window):
+    from app.floor_plan import standing_place
+    sampler = Recording()
+    window = make_window(generate=sampler)
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    window.floor_plan_dock.raise_()
+    plan = window.floor_plan
+    qtbot.waitUntil(lambda: plan.isVisible() and plan.width() > 100)
+    plan.fit()
+    key = cmd.find_keypose(window.doc.storyboard, "A", 60)
+    start = standing_place(window.doc.storyboard, key)
+
+    def at(xz):
+        x, y = plan.to_px(xz)
+        return QPoint(round(x), round(y))
+
+    qtbot.mousePress(plan, Qt.LeftButton, pos=at(start))
+    for step in np.linspace(0.05, 0.6, 12):
+        qtbot.mouseMove(plan, at(start + (step, 0.0)))
+        qtbot.wait(5)
+    qtbot.wait(200)
+    assert any(settings.preview for settings, _ in sampler.asked)                # previewed while dragged
+    qtbot.waitUntil(lambda: not window.session.running, timeout=5000)
+    qtbot.mouseRelease(plan, Qt.LeftButton, pos=at(start + (0.6, 0.0)))
+    qtbot.waitUntil(lambda: not sampler.asked[-1][0].preview and not window.session.running, timeout=5000)
+    moved = cmd.find_keypose(window.doc.storyboard, "A", 60)
+    assert np.linalg.norm(standing_place(window.doc.storyboard, moved) - start - (0.6, 0.0)) < 0.05
+    assert np.allclose(sampler.asked[-1][1], moved.points[WRIST])                # the full run has the move

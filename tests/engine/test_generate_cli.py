@@ -48,3 +48,10 @@ def test_a_saved_storyboard_generates_the_identical_motion(tmp_path):
     config = sampler_config(steps=3, seed=5)
     first, second = (generate(s, config, quiet=True).clips[0].joints for s in (sb, again))
     assert np.array_equal(first, second)
+
+
+def test_the_shipped_bundle_previews_in_four_evaluations(tmp_path, capsys):
+    """`generate --preview` on the shipped bundle: its preview student's 4 jumps, finished motion."""
+    code = main(["generate", "resources/examples/box_handoff.json", "-o", str(tmp_path / "p.npz"), "--preview"])
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and summary["network_evals"] == 4 and summary["K2D"] < 0.1
