@@ -64,11 +64,16 @@ class FloorPlan(QWidget):
         self.zoom = 60.0                      # px per metre
         self.centre = np.zeros(2)             # plan (right, away) coordinates at the widget's centre
         self._drag: tuple[str, object, list[np.ndarray]] | None = None   # (figure | turn | walk, key, [xz...])
+        self._framed = True                   # the view frames the content (until the wheel zooms)
         self.setMinimumSize(160, 140)
         self.setMouseTracking(False)
         for signal in (document.storyboardChanged, document.frameChanged, document.selectionChanged):
             signal.connect(self.update)
         document.replaced.connect(self.fit)
+
+    def resizeEvent(self, event):
+        if self._framed:                      # a dock resized or first shown: the scene stays framed
+            self.fit()
 
     # ---- geometry ------------------------------------------------------------------------------
     def _axes(self) -> np.ndarray:
@@ -87,6 +92,7 @@ class FloorPlan(QWidget):
 
     def fit(self) -> None:
         """Frame every keypose and path, with a margin."""
+        self._framed = True
         points = [p for p in self._content() if len(p)]
         if points:
             plan = np.concatenate(points) @ self._axes().T
@@ -217,6 +223,7 @@ class FloorPlan(QWidget):
         before = self.to_xz(px)
         self.zoom = float(np.clip(self.zoom * 1.0015 ** event.angleDelta().y(), 20.0, 300.0))
         self.centre += (before - self.to_xz(px)) @ self._axes().T
+        self._framed = False
         self.update()
 
     # ---- painting --------------------------------------------------------------------------------

@@ -4,7 +4,9 @@ coordinates, replaced when drawn again over the same frames, refused over other 
 arrow's tip dragged turns the figure where it stands."""
 import numpy as np
 import pytest
-from PySide6.QtCore import QPoint, Qt
+from PySide6.QtCore import QPoint, QPointF, Qt
+from PySide6.QtGui import QWheelEvent
+from PySide6.QtWidgets import QApplication
 
 from app import commands as cmd
 from app.document import Document
@@ -96,3 +98,23 @@ def test_dragging_the_arrow_turns_the_figure_where_it_stands(qtbot, plan):
     assert doc.undo_stack.undoText() == "Turn on the floor plan"
     again = type(sb).from_json(sb.to_json())
     assert np.allclose(cmd.find_keypose(again, "B", 60).depth, turned_key.depth)   # the turn is saved
+
+
+def test_the_plan_keeps_everyone_in_view_until_the_wheel_zooms(qtbot, plan):
+    widget, doc = plan
+
+    def all_in_view():
+        return all(widget.rect().contains(px(widget, standing_place(doc.storyboard, k))) for k in doc.storyboard.keyposes)
+
+    widget.resize(220, 180)                      # a narrow dock
+    qtbot.waitUntil(lambda: widget.width() == 220)
+    assert all_in_view()
+    centre = QPointF(110, 90)
+    wheel = QWheelEvent(centre, widget.mapToGlobal(centre), QPoint(0, 0), QPoint(0, 1200), Qt.NoButton,
+                        Qt.NoModifier, Qt.NoScrollPhase, False)
+    zoom = widget.zoom
+    QApplication.sendEvent(widget, wheel)
+    assert widget.zoom > zoom
+    widget.resize(400, 300)                      # the artist's zoom is kept
+    qtbot.waitUntil(lambda: widget.width() == 400)
+    assert widget.zoom > zoom
