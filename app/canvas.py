@@ -358,6 +358,8 @@ class SketchCanvas(CanvasPainting, QWidget):
             return
         self._pending_hand = None
         self._doc.undo_stack.push(cmd.AddContact(self._doc, contact))
+        held = f"{contact.object} side {contact.anchor}" if contact.object else f"{contact.other_agent}'s {contact.other_hand} hand"
+        self.message.emit(f"Contact added: {agent}'s {which} hand holds {held} over frames {start}-{end}.")
 
     def _press_erase(self, uv):
         doc = self._doc

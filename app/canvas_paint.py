@@ -7,6 +7,7 @@ import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPen, QPolygonF
 
+from engine.finishing.timing import held_until
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
 from . import commands as cmd
@@ -179,6 +180,7 @@ class CanvasPainting:
         for agent in sb.agents:
             kp = self._keypose_points(agent.id, frame)
             if kp is None:
+                self._paint_held(p, agent, frame)
                 continue
             points, mask = kp
             color = QColor(agent.color)
@@ -204,6 +206,16 @@ class CanvasPainting:
             p.setPen(color.darker(120))
             top = px[JOINT_INDEX["head"]] if mask[JOINT_INDEX["head"]] else px[mask].min(axis=0)
             self._draw_label(p, QPointF(top[0] - 4, top[1] - 0.1 * self.zoom - 8), agent.name or agent.id)
+
+    def _paint_held(self, p: QPainter, agent, frame: int):
+        """Inside a keypose's hold (Keypose.hold) the held pose, dashed: the figure stands so."""
+        keys = sorted((k for k in self._doc.storyboard.keyposes if k.agent == agent.id), key=lambda k: k.frame)
+        last = self._doc.storyboard.length - 1
+        held = [k for i, k in enumerate(keys) if k.frame < frame <= held_until(keys, i, last)]
+        if held:
+            color = QColor(agent.color)
+            color.setAlpha(170)
+            self._stick_lines(p, held[0].points, held[0].mask, QPen(color, 2.0, Qt.DashLine, Qt.RoundCap))
 
     def _paint_facing(self, p: QPainter, key, points: np.ndarray, color: QColor):
         """An arrow on the floor from under the figure's feet the way it faces (engine.facing);

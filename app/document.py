@@ -193,8 +193,12 @@ class Document(QObject):
         return self._result_source is not None and self._result_source != self.storyboard.to_json()
 
     def add_take(self, take: Take) -> None:
-        """A finished generation: kept (the oldest beyond MAX_TAKES dropped), shown, and unsaved."""
-        self.takes = (self.takes + [take])[-MAX_TAKES:]
+        """A finished generation: kept (the oldest beyond MAX_TAKES dropped), shown, and unsaved.
+        The generation after a drag replaces the newest take if that came after a drag too: a
+        session of posing leaves one take, not one per release."""
+        drafts = take.settings.get("after_drag") and self.takes and self.takes[-1].settings.get("after_drag")
+        self.takes = (self.takes[:-1] if drafts else self.takes) + [take]
+        self.takes = self.takes[-MAX_TAKES:]
         self._unsaved_without_edits = True
         self.choose_take(len(self.takes) - 1, force=True)
         self._emit_dirty()

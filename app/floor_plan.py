@@ -9,8 +9,8 @@ camera: right is the camera's right, up is away from the camera (drawn at the bo
   tell a figure facing the camera from one facing away). Dragging a disc moves the figure on the
   floor, dragging the arrow's tip turns it about the vertical (engine.facing): its sketch changes
   as the camera sees it.
-- Dragging on the floor draws the selected person's walk (a pelvis path over the timeline's span,
-  or the whole clip), kept in floor coordinates (Trajectory.floor) so the generator walks it
+- Dragging on the floor (anywhere, with the Trajectory tool) draws the selected person's walk (a
+  pelvis path over the timeline's span, or the whole clip), kept in floor coordinates (Trajectory.floor) so the generator walks it
   exactly; drawing again over the same span replaces it.
 - Sketched pelvis paths are shown dashed, at the height a walking pelvis has.
 """
@@ -140,8 +140,9 @@ class FloorPlan(QWidget):
         if event.button() != Qt.LeftButton:
             return
         px = np.array([event.position().x(), event.position().y()])
-        turning = self._tip_at(px)
-        key = turning or self._key_at(px)
+        drawing = self._doc.tool == "trajectory"       # the path tool draws walks even from a figure
+        turning = None if drawing else self._tip_at(px)
+        key = None if drawing else turning or self._key_at(px)
         if key is not None:
             self._doc.select(agent=key.agent)
             self._doc.set_frame(key.frame)

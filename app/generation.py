@@ -27,6 +27,7 @@ class GenerationSettings:
     steady: bool = False            # damped guidance (SamplerConfig.guidance_max_rate)
     variations: int = 1
     preview: bool = False           # the fast preview path (while a joint or an object is dragged)
+    after_drag: bool = False        # the full generation a live-previewed drag's release starts
     # Of the machine, not the document: the window fills these in from its preferences.
     threads: int | None = None      # torch threads (None: the cores other programs leave free)
     reserve_cores: float = 0.0      # cores left to the viewport's drawing (software OpenGL)

@@ -95,7 +95,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.viewport.empty_hint = "No motion yet.\nSketch, then press \u25b6 Generate (Ctrl+Enter)."
         self.properties = PropertiesPanel(self.doc)
         self.live_preview = LivePreview((self.canvas, self.floor_plan), self.session, self.generation_settings,
-                                        self.generate, self.settings, self)
+                                        lambda: self.generate(after_drag=True), self.settings, self)
         self._build_actions()
         self._shortcuts_first = WindowShortcutsFirst(self)
         self._build_docks()
@@ -439,10 +439,10 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         return replace(self.doc.settings, threads=self.threads_preference(),
                        reserve_cores=1.0 if self.viewport.draws_on_cpu() else 0.0)
 
-    def generate(self) -> None:
+    def generate(self, after_drag: bool = False) -> None:
         if self.session.running and not self.session.settings.preview:   # a preview gives way
             return
-        settings = self.generation_settings()
+        settings = replace(self.generation_settings(), after_drag=after_drag)
         problem = self.session.start(settings)
         if problem is not None:
             self.error(problem)

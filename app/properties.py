@@ -304,6 +304,7 @@ def _listed(items: list[str]) -> str:
 
 
 def _take_label(index: int, take: Take) -> str:
-    """'Take 3: seed 5, 30 steps, 14:02'."""
+    """'Take 3: seed 5, 30 steps, 14:02:17' (', after a drag' for a live-previewed edit's)."""
     steps = take.settings.get("steps")
-    return f"Take {index + 1}: seed {take.seed}" + (f", {steps} steps" if steps else "") + f", {take.created[-8:-3]}"
+    return (f"Take {index + 1}: seed {take.seed}" + (f", {steps} steps" if steps else "") + f", {take.created[-8:]}"
+            + (", after a drag" if take.settings.get("after_drag") else ""))

@@ -100,12 +100,15 @@ def test_object_contact_and_erase_tools(qtbot, canvas):
     hand = cmd.find_keypose(doc.storyboard, "A", 60).points[JOINT_INDEX["r_wrist"]]
     doc.set_frame(60)
     doc.set_span((60, 80))
+    messages = []
+    canvas.message.connect(messages.append)
     qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, hand))
     box = doc.storyboard.object_keys[0].outline
     anchor = np.array([box[:, 0].max(), box[:, 1].mean()])
     qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, anchor))
     c = doc.storyboard.contacts[-1]
     assert (c.agent, c.hand, c.object, c.anchor, c.start, c.end) == ("A", "right", "box1", 1, 60, 80)
+    assert messages[-1] == "Contact added: A's right hand holds box1 side 1 over frames 60-80."   # not a stale prompt
     count = len(doc.storyboard.trajectories)
     doc.set_tool("erase")
     t = doc.storyboard.trajectories[0]
@@ -201,3 +204,22 @@ def test_the_contact_tool_takes_the_nearest_hand_of_any_person(qtbot, canvas):
     qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, a_hand + (0.02, 0.0)))   # A's, B excluded
     c = doc.storyboard.contacts[-1]
     assert (c.agent, c.hand, c.other_agent, c.other_hand) == ("B", "left", "A", "right")
+
+
+def test_inside_a_hold_the_held_pose_is_drawn(qtbot, canvas):
+    doc = canvas._doc
+    doc.replace_storyboard(sample_storyboard(), None)
+    canvas.frame_sketch()
+    doc.select(agent="B")                                   # A's neighbouring keys are not onion-skinned
+    key = cmd.find_keypose(doc.storyboard, "A", 60)
+    spots = [px(canvas, (key.points[JOINT_INDEX[a]] + key.points[JOINT_INDEX[b]]) / 2)
+             for a, b in (("l_knee", "l_ankle"), ("r_knee", "r_ankle"), ("spine1", "spine2"))]
+
+    def drawn(frame, hold):                                 # the colours at the middles of three bones
+        doc.undo_stack.push(cmd.SetKeyTiming(doc, "A", 60, hold, False, False))
+        doc.set_frame(frame)
+        image = canvas.grab().toImage()
+        return [image.pixelColor(p.x() + dx, p.y() + dy).name() for p in spots for dx in (-1, 0, 1) for dy in (-1, 0, 1)]
+
+    assert drawn(66, 10) != drawn(66, 0)                    # held through frame 70: drawn at 66
+    assert drawn(75, 10) == drawn(75, 0)                    # and not after the hold

@@ -76,6 +76,13 @@ def test_a_walk_drawn_on_the_floor_is_the_pelvis_path(qtbot, plan):
     assert len(doc.storyboard.trajectories) == count and "already covers frames 0-119" in messages[0]
     doc.undo_stack.undo()
     assert doc.storyboard.trajectories[index].floor is None       # the sketched path is back
+    doc.set_span(None)
+    doc.set_tool("trajectory")                                    # the path tool: a walk from the figure
+    key = cmd.find_keypose(doc.storyboard, "A", 0)
+    start = standing_place(doc.storyboard, key)
+    drag(qtbot, widget, [px(widget, start + (0.1 * i, 0.0)) for i in range(8)])
+    assert np.allclose(standing_place(doc.storyboard, cmd.find_keypose(doc.storyboard, "A", 0)), start)
+    assert np.linalg.norm(doc.storyboard.trajectories[index].floor[0] - start) < 0.05
 
 
 def test_dragging_the_arrow_turns_the_figure_where_it_stands(qtbot, plan):

@@ -107,3 +107,16 @@ def test_moving_a_figure_on_the_floor_plan_previews_it(qtbot, make_window):
     moved = cmd.find_keypose(window.doc.storyboard, "A", 60)
     assert np.linalg.norm(standing_place(window.doc.storyboard, moved) - start - (0.6, 0.0)) < 0.05
     assert np.allclose(sampler.asked[-1][1], moved.points[WRIST])                # the full run has the move
+    # A second drag: its release's take replaces the first's (one take per posing session).
+    takes = len(window.doc.takes)
+    start = standing_place(window.doc.storyboard, moved)
+    qtbot.mousePress(plan, Qt.LeftButton, pos=at(start))
+    for step in np.linspace(0.05, 0.3, 6):
+        qtbot.mouseMove(plan, at(start + (0.0, step)))
+        qtbot.wait(5)
+    qtbot.wait(200)
+    qtbot.waitUntil(lambda: not window.session.running, timeout=5000)
+    qtbot.mouseRelease(plan, Qt.LeftButton, pos=at(start + (0.0, 0.3)))
+    qtbot.waitUntil(lambda: not sampler.asked[-1][0].preview and not window.session.running, timeout=5000)
+    assert len(window.doc.takes) == takes and window.doc.takes[-1].settings["after_drag"]
+    assert "after a drag" in window.properties.take.itemText(takes - 1)
