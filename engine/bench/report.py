@@ -171,7 +171,7 @@ def _speed_section(speed: dict, labels: dict) -> str:
     if staged:    # where the time goes: the sampler's own clock (engine.sampling.events.StageClock)
         stages = [s for s in STAGE_ORDER if any(s in f["stage_s"] for _, f in staged)]
         rows = [[labels[k]] + [fmt(f["stage_s"].get(s, 0.0)) for s in stages]
-                + [fmt(f["wall_s"] - sum(f["stage_s"].values()))] for k, f in staged]
+                + [fmt(max(0.0, f["wall_s"] - sum(f["stage_s"].values())))] for k, f in staged]
         out += ["", "Where the time goes (s, medians; rest: streaming the steps, the solver's arithmetic, "
                 "setting up):", "", table(["Method", *stages, "rest"], rows)]
     busy = speed.get("busy")
