@@ -105,6 +105,18 @@ class SketchCanvas(CanvasPainting, QWidget):
         self.pan = (lo + hi) / 2 + np.array([0.0, 12.0 / self.zoom])
         self.update()
 
+    def keep_in_view(self, points: np.ndarray) -> None:
+        """Pan just enough that sketch points (L, 2) are inside the view (all of it framed if they
+        do not fit): a figure moved on the floor plan stays in sight here."""
+        margin = FRAME_MARGIN_PX / self.zoom
+        half = np.array([self.width(), self.height()]) / (2 * self.zoom) - margin
+        lo, hi = points.min(0) - self.pan, points.max(0) - self.pan
+        if np.any(hi - lo > 2 * half):
+            self.frame_sketch()
+            return
+        self._set_pan(self.pan + np.maximum(hi - half, 0.0) + np.minimum(lo + half, 0.0))
+        self.update()
+
     def keyPressEvent(self, event):
         if event.key() == Qt.Key_F and not event.modifiers():
             self.frame_sketch()

@@ -20,12 +20,13 @@ from engine.cpu import usable_cores
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard
 
+from . import commands as cmd
 from .autosave import Autosaver
 from .canvas import SketchCanvas
-from .floor_plan import FloorPlan
 from .document import TOOLS, Document
 from .examples import list_examples
 from .files import APP_NAME, FileActions
+from .floor_plan import FloorPlan
 from .generation import GenerationSettings, StepStream, start_generation
 from .live_preview import LivePreview
 from .phase_strip import PhaseStrip, phase_legend_html
@@ -381,6 +382,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.viewport.stepRequested.connect(self.playback.step)
         for view in (self.canvas, self.floor_plan):
             view.message.connect(lambda text: self.statusBar().showMessage(text, 5000))
+        self.floor_plan.dragEnded.connect(self._keep_selected_figure_in_view)
         self.playback.loopChanged.connect(self.act_loop.setChecked)
         self.playback.speedChanged.connect(self._on_speed)
         self.view_options.changed.connect(self._apply_view_options)
@@ -450,6 +452,11 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.progress.setRange(0, settings.steps)
         self.progress.setValue(0)
         self.statusBar().showMessage("Generating\u2026  (Esc cancels)")
+
+    def _keep_selected_figure_in_view(self) -> None:
+        key = cmd.find_keypose(self.doc.storyboard, self.doc.selection.agent, self.doc.frame)
+        if key is not None:
+            self.canvas.keep_in_view(key.points[key.mask])
 
     def _on_running(self, running: bool) -> None:
         self.act_generate.setEnabled(not running)

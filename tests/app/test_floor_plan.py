@@ -125,3 +125,20 @@ def test_the_plan_keeps_everyone_in_view_until_the_wheel_zooms(qtbot, plan):
     widget.resize(400, 300)                      # the artist's zoom is kept
     qtbot.waitUntil(lambda: widget.width() == 400)
     assert widget.zoom > zoom
+
+
+def test_a_figure_moved_off_the_sketch_view_is_brought_into_it(qtbot, make_window):
+    window = make_window()
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    window.floor_plan_dock.raise_()
+    plan, canvas = window.floor_plan, window.canvas
+    qtbot.waitUntil(lambda: plan.isVisible() and plan.width() > 100)
+    plan.fit()
+    key = cmd.find_keypose(window.doc.storyboard, "B", 119)
+    start = standing_place(window.doc.storyboard, key)
+    target = start + (3.0, 0.0)                                  # 3 m to the right: off the sketch view
+    plan.zoom = 40.0
+    drag(qtbot, plan, [px(plan, start), px(plan, start + (1.5, 0.0)), px(plan, target)])
+    moved = cmd.find_keypose(window.doc.storyboard, "B", 119)
+    inside = [canvas.rect().contains(QPoint(*np.round(canvas.to_px(p)).astype(int))) for p in moved.points]
+    assert all(inside)
