@@ -1,6 +1,7 @@
 """Training: EMA, deterministic batches, resume == uninterrupted, DDP on gloo, every stage end
 to end on fake clips, and the model bundle."""
 import dataclasses
+import os
 import time
 from pathlib import Path
 
@@ -87,6 +88,9 @@ def _ddp_worker(rank: int, world: int, init_file: str, runs: str):
         torch.distributed.barrier()
     finally:
         torch.distributed.destroy_process_group()
+    # Even so, gloo's static destructors at interpreter exit can still abort ("terminate called
+    # without an active exception", seen in CI): a worker whose work is done and written skips them.
+    os._exit(0)
 
 
 def _trained_vqvae_params(runs):
