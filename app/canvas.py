@@ -157,11 +157,15 @@ class SketchCanvas(CanvasPainting, QWidget):
             outline = outline + (g.points[-1] - g.points[0])
         return i, outline, bool(exact)
 
-    def _anchors_2d(self, outline: np.ndarray) -> np.ndarray:
-        """The object's two grasp anchors in the sketch: middle of its left and right sides (2, 2)."""
+    def _anchors_2d(self, object_id: str, outline: np.ndarray) -> np.ndarray:
+        """The object's grasp anchors (its spec's, K of them) in the sketch (K, 2): an anchor on
+        the object's -x end at the middle of the outline's left side, on the +x end at its right
+        side, each moved by its depth (local z) as the camera sees it (near and far grips apart)."""
         lo, hi = outline.min(axis=0), outline.max(axis=0)
-        mid = (lo[1] + hi[1]) / 2
-        return np.array([[lo[0], mid], [hi[0], mid]])
+        anchors = self._doc.storyboard.objects[self._doc.storyboard.object_index(object_id)].spec.anchors
+        sides = np.where(anchors[:, :1] < 0, [[lo[0], (lo[1] + hi[1]) / 2]], [[hi[0], (lo[1] + hi[1]) / 2]])
+        depth = np.stack([np.zeros(len(anchors)), np.zeros(len(anchors)), anchors[:, 2]], -1)
+        return sides + depth @ self._doc.storyboard.camera.basis()[:2].T
 
     def _hand_position(self, agent: str, hand: str) -> np.ndarray | None:
         j = JOINT_INDEX[HAND_NAMES[hand]]
@@ -214,7 +218,7 @@ class SketchCanvas(CanvasPainting, QWidget):
         for obj in self._doc.storyboard.objects:
             found = self._object_outline(obj.id, self._doc.frame)
             if found:
-                d = np.linalg.norm(self._anchors_2d(found[1]) - uv, axis=-1)
+                d = np.linalg.norm(self._anchors_2d(obj.id, found[1]) - uv, axis=-1)
                 if d.min() < 2 * self._hit():
                     return obj.id, int(np.argmin(d))
         return None
@@ -242,7 +246,8 @@ class SketchCanvas(CanvasPainting, QWidget):
         hand = self._hand_position(c.agent, c.hand)
         if c.object is not None:
             found = self._object_outline(c.object, self._doc.frame)
-            other = self._anchors_2d(found[1])[min(c.anchor, 1)] if found else None
+            anchors = self._anchors_2d(c.object, found[1]) if found else None
+            other = anchors[c.anchor] if anchors is not None and c.anchor < len(anchors) else None
         else:
             other = self._hand_position(c.other_agent, c.other_hand)
         return None if hand is None or other is None else np.stack([hand, other])
@@ -370,7 +375,7 @@ class SketchCanvas(CanvasPainting, QWidget):
             return
         self._pending_hand = None
         self._doc.undo_stack.push(cmd.AddContact(self._doc, contact))
-        held = f"{contact.object} side {contact.anchor}" if contact.object else f"{contact.other_agent}'s {contact.other_hand} hand"
+        held = f"{contact.object} grip {contact.anchor}" if contact.object else f"{contact.other_agent}'s {contact.other_hand} hand"
         self.message.emit(f"Contact added: {agent}'s {which} hand holds {held} over frames {start}-{end}.")
 
     def _press_erase(self, uv):

@@ -126,7 +126,7 @@ class CanvasPainting:
             self._draw_label(p, QPointF(top[0], top[1] - 5), f"{obj.id} ({obj.spec.type})")
             if exact:
                 p.setBrush(PAPER)
-                for a in self._anchors_2d(outline):
+                for a in self._anchors_2d(obj.id, outline):
                     p.drawEllipse(QPointF(*self.to_px(a)), 4, 4)
 
     def _paint_strokes(self, p: QPainter):

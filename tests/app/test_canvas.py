@@ -95,7 +95,7 @@ def test_object_contact_and_erase_tools(qtbot, canvas):
     drag(qtbot, canvas, [np.array([-1.5, -0.9]), np.array([-1.2, -0.6]), np.array([-1.0, -0.5])])
     key = doc.storyboard.object_keys[-1]
     assert key.frame == 90 and len(key.outline) == 4
-    # Contact: A's right hand to the new key's anchor 1 (right side).
+    # Contact: A's right hand to the box's far grip on its right (+x) end: anchor 3.
     doc.set_tool("contact")
     hand = cmd.find_keypose(doc.storyboard, "A", 60).points[JOINT_INDEX["r_wrist"]]
     doc.set_frame(60)
@@ -104,11 +104,13 @@ def test_object_contact_and_erase_tools(qtbot, canvas):
     canvas.message.connect(messages.append)
     qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, hand))
     box = doc.storyboard.object_keys[0].outline
-    anchor = np.array([box[:, 0].max(), box[:, 1].mean()])
-    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, anchor))
+    grips = canvas._anchors_2d("box1", box)
+    assert len(grips) == 4 and np.all(grips[:2, 0] < box[:, 0].mean()) and np.all(grips[2:, 0] > box[:, 0].mean())
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, grips[3]))
     c = doc.storyboard.contacts[-1]
-    assert (c.agent, c.hand, c.object, c.anchor, c.start, c.end) == ("A", "right", "box1", 1, 60, 80)
-    assert messages[-1] == "Contact added: A's right hand holds box1 side 1 over frames 60-80."   # not a stale prompt
+    assert (c.agent, c.hand, c.object, c.anchor, c.start, c.end) == ("A", "right", "box1", 3, 60, 80)
+    assert messages[-1] == "Contact added: A's right hand holds box1 grip 3 over frames 60-80."   # not a stale prompt
+    assert np.allclose(canvas._contact_ends(c)[1], grips[3])                   # the line goes to that grip
     count = len(doc.storyboard.trajectories)
     doc.set_tool("erase")
     t = doc.storyboard.trajectories[0]
