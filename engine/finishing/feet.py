@@ -61,6 +61,8 @@ class FeetConfig:
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
     settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
     max_crouch: float = 0.1          # m; most a body lowers so its legs reach their plants
+    leg_extension: float = 0.98      # share of a leg's length its planted reach may take: a knee kept
+                                     # off straight, where two-bone IK swings it fast (pops)
     crouch_window: int = 5           # frames a crouch is held around its deepest need ...
     crouch_sigma: float = 1.5        # ... and smoothed over, so it never bobs
 
@@ -248,7 +250,7 @@ def _crouch(pose: np.ndarray, goals: list[np.ndarray], config: FeetConfig) -> np
     need = np.zeros(len(pose))
     for side, goal in enumerate(goals):
         hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
-        length = 0.995 * (np.linalg.norm(pose[:, knee] - pose[:, hip], axis=-1)
+        length = config.leg_extension * (np.linalg.norm(pose[:, knee] - pose[:, hip], axis=-1)
                           + np.linalg.norm(pose[:, ankle] - pose[:, knee], axis=-1))
         reach = goal - (pose[:, toe] - pose[:, ankle]) - pose[:, hip]          # hip -> ankle goal
         across = np.linalg.norm(reach[:, [0, 2]], axis=-1)
