@@ -122,8 +122,10 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
                 until = stop if lift is None else lift
                 drift = np.linalg.norm(foot[start:until, [0, 2]] - foot[start, [0, 2]], axis=-1)
                 end = start + int(np.argmax(drift > config.max_drift)) if drift.max() > config.max_drift else until
-            end = _free_step(busy, end, start + config.min_stance_frames, stop if lift is None else lift,
-                             config.step_frames, end)
+            # The step waits for the other foot to stand, but not long: a plant held on while
+            # the foot glides away would leave it metres to cover in one step.
+            end = _free_step(busy, end, max(start + config.min_stance_frames, end - config.max_step_frames),
+                             min(stop if lift is None else lift, end + config.max_step_frames), config.step_frames, end)
             if lift is None and stop - end < config.step_frames + config.min_stance_frames:
                 end = stop                       # no room for another plant: hold this one
             out.append((int(start), int(end)))
