@@ -7,12 +7,12 @@ import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPen, QPolygonF
 
-from engine.finishing.timing import held_until
+from engine.finishing.timing import holds
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
 from . import commands as cmd
 from .document import OBJECT_PATH
-from .poses import key_facing, known_depth
+from .poses import key_facing
 
 LABEL_MARGIN_PX = 3.0   # labels keep this far from the canvas edges
 FACING_M = 0.35         # length on the floor of the arrow the way a keypose faces
@@ -209,9 +209,7 @@ class CanvasPainting:
 
     def _paint_held(self, p: QPainter, agent, frame: int):
         """Inside a keypose's hold (Keypose.hold) the held pose, dashed: the figure stands so."""
-        keys = sorted((k for k in self._doc.storyboard.keyposes if k.agent == agent.id), key=lambda k: k.frame)
-        last = self._doc.storyboard.length - 1
-        held = [k for i, k in enumerate(keys) if k.frame < frame <= held_until(keys, i, last)]
+        held = [k for k, end in holds(self._doc.storyboard, agent.id) if k.frame < frame <= end]
         if held:
             color = QColor(agent.color)
             color.setAlpha(170)
@@ -223,11 +221,11 @@ class CanvasPainting:
         found = key_facing(self._doc, key, points)
         if found is None:
             return
-        yaw, ground = found
+        yaw, ground, guessed = found
         camera = self._doc.storyboard.camera
         ahead = ground + FACING_M * np.array([np.sin(yaw), 0.0, np.cos(yaw)])
         start, tip = self.to_px(camera.project(np.stack([ground, ahead])))
-        draw_arrow(p, start, tip, color.darker(120), dashed=known_depth(self._doc, key) is None)
+        draw_arrow(p, start, tip, color.darker(120), dashed=guessed)
 
     def _paint_contacts(self, p: QPainter):
         for c in self._doc.storyboard.contacts:

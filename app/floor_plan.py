@@ -264,14 +264,14 @@ class FloorPlan(QWidget):
     def _paint_arrow(self, p: QPainter, key: Keypose, xz: np.ndarray, color: QColor) -> None:
         """The way the keypose faces, as an arrow from its disc (towards the pointer while turned);
         dashed where the figure's depth is a guess (no stamped or turned pose, no motion yet)."""
-        yaw = self._yaw(key)
-        if yaw is None:
+        found = key_facing(self._doc, key)
+        if found is None:
             return
+        yaw, _, guessed = found
         if self._drag and self._drag[0] == "turn" and self._drag[1] is key:
             yaw = self._turned_yaw(key, self._drag[2][-1])
         ahead = np.array([np.sin(yaw), np.cos(yaw)])
-        draw_arrow(p, self.to_px(xz), self.to_px(xz + ARROW_M * ahead), color.darker(130),
-                   dashed=known_depth(self._doc, key) is None)
+        draw_arrow(p, self.to_px(xz), self.to_px(xz + ARROW_M * ahead), color.darker(130), dashed=guessed)
 
     def _paint_grid(self, p: QPainter) -> None:
         """World grid lines every GRID_M metres over the visible floor, the axes darker."""

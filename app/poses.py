@@ -66,10 +66,11 @@ def known_depth(doc, key: Keypose) -> np.ndarray | None:
     return depth_of(np.asarray(joints[min(key.frame, len(joints) - 1), h], float), doc.storyboard.camera)
 
 
-def key_facing(doc, key: Keypose, points: np.ndarray | None = None) -> tuple[float, np.ndarray] | None:
-    """(yaw, world (3,) point under the feet) of a keypose (its points, or `points` (22, 2) while
-    dragged); None when its feet or hips are not placed."""
+def key_facing(doc, key: Keypose, points: np.ndarray | None = None) -> tuple[float, np.ndarray, bool] | None:
+    """(yaw, world (3,) point under the feet, whether its depth is a guess) of a keypose (its
+    points, or `points` (22, 2) while dragged); None when its feet or hips are not placed."""
     if not key.mask[TURNABLE].all():
         return None
-    joints = lift(key.points if points is None else points, doc.storyboard.camera, known_depth(doc, key))
-    return facing(joints), joints[list(FEET)].mean(0) * (1.0, 0.0, 1.0)
+    depth = known_depth(doc, key)
+    joints = lift(key.points if points is None else points, doc.storyboard.camera, depth)
+    return facing(joints), joints[list(FEET)].mean(0) * (1.0, 0.0, 1.0), depth is None

@@ -17,7 +17,7 @@ from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QMenu, QToolButton, QWidget
 
-from engine.finishing.timing import held_until
+from engine.finishing.timing import holds
 
 from . import commands as cmd
 from .document import Document
@@ -209,9 +209,7 @@ class Timeline(QWidget):
         """{frame: (frames held, ease in, ease out)} of an agent track's keyposes."""
         if track.kind != "agent":
             return {}
-        keys = sorted((k for k in self._doc.storyboard.keyposes if k.agent == track.owner), key=lambda k: k.frame)
-        last = self._doc.storyboard.length - 1
-        return {k.frame: (held_until(keys, i, last) - k.frame, k.ease_in, k.ease_out) for i, k in enumerate(keys)}
+        return {k.frame: (end - k.frame, k.ease_in, k.ease_out) for k, end in holds(self._doc.storyboard, track.owner)}
 
     @staticmethod
     def _key_marker(p: QPainter, x: float, y: float, color: QColor, ease_in: bool = False, ease_out: bool = False):

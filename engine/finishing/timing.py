@@ -37,6 +37,12 @@ def held_until(keys: list[Keypose], i: int, last: int) -> int:
     return max(keys[i].frame, min(end, last))
 
 
+def holds(storyboard: Storyboard, agent: str) -> list[tuple[Keypose, int]]:
+    """The agent's keys in time order, each with the last frame its pose is held (held_until)."""
+    keys = sorted((k for k in storyboard.keyposes if k.agent == agent), key=lambda k: k.frame)
+    return [(k, held_until(keys, i, storyboard.length - 1)) for i, k in enumerate(keys)]
+
+
 def source_times(keys: list[Keypose], n: int) -> np.ndarray | None:
     """(n,) times of the generated motion shown at each frame, for a person's keys sorted by frame
     (None where no key is timed: the motion as generated)."""
@@ -77,10 +83,6 @@ def retime_to_keys(joints: np.ndarray, storyboard: Storyboard) -> np.ndarray:
 
 def with_hold_ends(storyboard: Storyboard) -> Storyboard:
     """The storyboard with each held key keyed again (untimed) on the last frame of its hold."""
-    last = storyboard.length - 1
-    ends = []
-    for agent in storyboard.agents:
-        keys = sorted((k for k in storyboard.keyposes if k.agent == agent.id), key=lambda k: k.frame)
-        ends += [replace(k, frame=end, hold=0, ease_in=False, ease_out=False)
-                 for i, k in enumerate(keys) for end in [held_until(keys, i, last)] if end > k.frame]
+    ends = [replace(k, frame=end, hold=0, ease_in=False, ease_out=False)
+            for agent in storyboard.agents for k, end in holds(storyboard, agent.id) if end > k.frame]
     return replace(storyboard, keyposes=storyboard.keyposes + ends) if ends else storyboard
