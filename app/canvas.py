@@ -106,8 +106,7 @@ class SketchCanvas(CanvasPainting, QWidget):
         self.update()
 
     def keep_in_view(self, points: np.ndarray) -> None:
-        """Pan just enough that sketch points (L, 2) are inside the view (all of it framed if they
-        do not fit): a figure moved on the floor plan stays in sight here."""
+        """Pan just enough that sketch points (L, 2) are in view (frame all if they do not fit)."""
         margin = FRAME_MARGIN_PX / self.zoom
         half = np.array([self.width(), self.height()]) / (2 * self.zoom) - margin
         lo, hi = points.min(0) - self.pan, points.max(0) - self.pan
@@ -158,9 +157,8 @@ class SketchCanvas(CanvasPainting, QWidget):
         return i, outline, bool(exact)
 
     def _anchors_2d(self, object_id: str, outline: np.ndarray) -> np.ndarray:
-        """The object's grasp anchors (its spec's, K of them) in the sketch (K, 2): an anchor on
-        the object's -x end at the middle of the outline's left side, on the +x end at its right
-        side, each moved by its depth (local z) as the camera sees it (near and far grips apart)."""
+        """The object's K grasp anchors in the sketch (K, 2): on its -x end at the outline's left side,
+        +x at the right, each moved by its depth (local z) as the camera sees it (near / far grips)."""
         lo, hi = outline.min(axis=0), outline.max(axis=0)
         anchors = self._doc.storyboard.objects[self._doc.storyboard.object_index(object_id)].spec.anchors
         sides = np.where(anchors[:, :1] < 0, [[lo[0], (lo[1] + hi[1]) / 2]], [[hi[0], (lo[1] + hi[1]) / 2]])
@@ -375,8 +373,7 @@ class SketchCanvas(CanvasPainting, QWidget):
             return
         self._pending_hand = None
         self._doc.undo_stack.push(cmd.AddContact(self._doc, contact))
-        held = f"{contact.object} grip {contact.anchor}" if contact.object else f"{contact.other_agent}'s {contact.other_hand} hand"
-        self.message.emit(f"Contact added: {agent}'s {which} hand holds {held} over frames {start}-{end}.")
+        self.message.emit(f"Contact added: {cmd.describe_contact(contact)}")
 
     def _press_erase(self, uv):
         doc = self._doc

@@ -51,6 +51,12 @@ class StoryboardCommand(QUndoCommand):
             setattr(sb, name, copy.deepcopy(value))
 
 
+def describe_contact(c: Contact) -> str:
+    """'A left hand \u2192 box1 anchor 2   [0\u201348]'."""
+    held = f"{c.object} anchor {c.anchor}" if c.object is not None else f"{c.other_agent} {c.other_hand} hand"
+    return f"{c.agent} {c.hand} hand \u2192 {held}   [{c.start}\u2013{c.end}]"
+
+
 def find_keypose(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
     return next((k for k in sb.keyposes if k.agent == agent and k.frame == frame), None)
 

@@ -192,7 +192,7 @@ class PropertiesPanel(QWidget):
                 spin.setValue(value)
         row = self.contacts.currentRow()
         self.contacts.clear()
-        self.contacts.addItems([_describe_contact(c) for c in sb.contacts])
+        self.contacts.addItems([cmd.describe_contact(c) for c in sb.contacts])
         self.contacts.setCurrentRow(min(row, self.contacts.count() - 1))
         self.delete_contact.setEnabled(self.contacts.currentRow() >= 0)
         s = doc.settings
@@ -277,11 +277,6 @@ class PropertiesPanel(QWidget):
         row = self.contacts.currentRow()
         if row >= 0:
             self._doc.undo_stack.push(cmd.DeleteContact(self._doc, row))
-
-
-def _describe_contact(c) -> str:
-    held = f"{c.object} anchor {c.anchor}" if c.object is not None else f"{c.other_agent} {c.other_hand} hand"
-    return f"{c.agent} {c.hand} hand \u2192 {held}   [{c.start}\u2013{c.end}]"
 
 
 def work_cut_off(sb: Storyboard, length: int) -> str:

@@ -109,7 +109,7 @@ def test_object_contact_and_erase_tools(qtbot, canvas):
     qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, grips[3]))
     c = doc.storyboard.contacts[-1]
     assert (c.agent, c.hand, c.object, c.anchor, c.start, c.end) == ("A", "right", "box1", 3, 60, 80)
-    assert messages[-1] == "Contact added: A's right hand holds box1 grip 3 over frames 60-80."   # not a stale prompt
+    assert messages[-1] == "Contact added: A right hand \u2192 box1 anchor 3   [60\u201380]"   # not a stale prompt
     assert np.allclose(canvas._contact_ends(c)[1], grips[3])                   # the line goes to that grip
     count = len(doc.storyboard.trajectories)
     doc.set_tool("erase")
