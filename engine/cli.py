@@ -82,7 +82,7 @@ def cmd_train(args) -> int:
     from .training.command import TrainError, train_command
     try:
         train_command(args.stage, args.config, args.data, args.real, args.steps, args.resume, args.runs,
-                      args.threads, args.from_bundle)
+                      args.threads, args.from_bundle, args.batch_size, args.lr, args.minutes, args.workers)
     except TrainError as e:
         raise UserError(str(e)) from None
     return 0
@@ -199,6 +199,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--real", nargs="+", metavar="DIR", help="folders of imported capture clip NPZs")
     s.add_argument("--steps", type=int, help="steps per stage (overrides the config)")
     s.add_argument("--resume", action="store_true", help="continue from runs/STAGE/checkpoint.pt")
+    s.add_argument("--batch-size", type=int, metavar="N", help="clips per step (overrides the config)")
+    s.add_argument("--lr", type=float, help="learning rate of every stage (overrides the config)")
+    s.add_argument("--minutes", type=float, metavar="M",
+                   help="stop each stage after M minutes, saved like a finished one; --resume goes on")
+    s.add_argument("--workers", type=int, metavar="N",
+                   help="processes that draw the storyboards (overrides the config; a GPU waits on them without)")
     s.add_argument("--runs", default="runs", help="output root (default runs/)")
     s.add_argument("--from-bundle", metavar="BUNDLE.pt",
                    help="take the earlier stages a stage needs from this bundle where runs/ lacks them "

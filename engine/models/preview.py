@@ -47,7 +47,7 @@ def reference_path(field: GuidedField, lowres: LowRes, z1: torch.Tensor, cond: C
     z, pos, states, positions = z1, None, [z1], [None]
     for i, (t, t_next) in enumerate(zip(times[:-1], times[1:])):
         def v(x, s):
-            return field(x, torch.full((x.shape[0],), s), cond, pos, occupancy)
+            return field(x, torch.full((x.shape[0],), s, dtype=x.dtype, device=x.device), cond, pos, occupancy)
         v_start = v(z, t)
         v_end = v(z + (t_next - t) * v_start, t_next)
         z = z + (t_next - t) * 0.5 * (v_start + v_end)

@@ -18,7 +18,9 @@ class TrainError(ValueError):
 
 def train_command(stage: str, config: str = "default", data: list[str] | None = None,
                   real: list[str] | None = None, steps: int | None = None, resume: bool = False,
-                  runs: str = "runs", threads: int | None = None, from_bundle: str | None = None) -> dict:
+                  runs: str = "runs", threads: int | None = None, from_bundle: str | None = None,
+                  batch_size: int | None = None, lr: float | None = None, minutes: float | None = None,
+                  workers: int | None = None) -> dict:
     from ..dataset import DatasetConfig, StoryboardWindows, split_files
     cfg = CONFIGS[config]()
     if steps is not None:
@@ -27,6 +29,17 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
         cfg.steps, cfg.stage_steps = steps, {}
     if threads is not None:
         cfg.threads = max(1, threads)
+    for name, value in (("--batch-size", batch_size), ("--lr", lr), ("--minutes", minutes)):
+        if value is not None and value <= 0:
+            raise TrainError(f"{name} must be positive, got {value}")
+    if batch_size is not None:
+        cfg.batch_size = batch_size
+    if lr is not None:
+        cfg.lr, cfg.stage_lr = lr, {}
+    if minutes is not None:
+        cfg.stage_seconds = 60.0 * minutes
+    if workers is not None:
+        cfg.num_workers = max(0, workers)
     files = []
     for folder in data or []:
         if not Path(folder).is_dir():

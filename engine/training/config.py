@@ -25,6 +25,7 @@ class TrainConfig:
     grad_clip: float = 1.0
     seed: int = 0
     checkpoint_every_s: float = 180.0
+    stage_seconds: float | None = None   # wall-clock budget of one stage run: it stops early, saved (resume goes on)
     log_every: int = 10
     num_workers: int = 0
     threads: int | None = None       # torch CPU threads (None: engine.cpu chooses, and re-chooses as load changes)

@@ -93,7 +93,8 @@ def _all_agree(due: bool, world: int) -> bool:
 
 def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path, resume: bool = False,
              progress: bool = True) -> dict:
-    """Train task.trainable for cfg.steps_for(task.name) steps; returns the final metrics.
+    """Train task.trainable for cfg.steps_for(task.name) steps (fewer when cfg.stage_seconds runs
+    out first: metrics["steps"] says how many were done); returns the final metrics.
     Writes run_dir/checkpoint.pt (resume state), run_dir/log.jsonl and run_dir/final.pt (EMA)."""
     rank, world = _dist_info()
     device = torch.device(f"cuda:{torch.cuda.current_device()}" if torch.cuda.is_available() else "cpu")
@@ -138,7 +139,7 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
                         num_workers=cfg.num_workers, generator=torch.Generator().manual_seed(cfg.seed))
     bar = tqdm(total=steps, initial=start, desc=task.name, disable=not progress or rank != 0, dynamic_ncols=True)
     log = open(run_dir / "log.jsonl", "a") if rank == 0 else None
-    last_save, terms, step = time.monotonic(), {}, start
+    last_save, terms, done = time.monotonic(), {}, start
     model.train()
     threads = ThreadBudget(cfg.threads, every_s=10.0)
     try:
@@ -160,11 +161,14 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
                 if step % cfg.log_every == 0 or step == steps - 1:
                     log.write(json.dumps({"step": step, **{k: v.item() for k, v in terms.items()}}) + "\n")
                     log.flush()
+            done = step + 1
+            if _all_agree(cfg.stage_seconds is not None and time.monotonic() - began > cfg.stage_seconds, world):
+                break
             if _all_agree(time.monotonic() - last_save > cfg.checkpoint_every_s, world):
-                save(step + 1)
+                save(done)
                 last_save = time.monotonic()
-        save(steps)
-        metrics = {"stage": task.name, "steps": steps, "wall_time_s": round(elapsed_before + time.monotonic() - began, 1),
+        save(done)
+        metrics = {"stage": task.name, "steps": done, "wall_time_s": round(elapsed_before + time.monotonic() - began, 1),
                    **{k: v.item() for k, v in terms.items()}}
         if task.finish is not None:
             metrics.update(task.finish(ema.shadow, dataset))

@@ -13,6 +13,7 @@ from engine.models.bundle import BundleError, ModelConfig, load_bundle, load_def
 from engine.models.unet import UNetConfig
 from engine.models.vqvae import VQVAEConfig
 from engine.training import checkpoint
+from engine.training.command import TrainError, train_command
 from engine.training.config import STAGES, TrainConfig
 from engine.training.ema import EMA
 from engine.training.export import bundle_from_runs
@@ -64,6 +65,25 @@ def test_resume_equals_uninterrupted(tmp_path):
     for key in ("model", "ema"):
         for name, value in a[key].items():
             assert torch.equal(value, b[key][name]), (key, name)
+
+
+def test_time_budget_stops_early_saved_and_resume_goes_on(tmp_path):
+    data = FakeClips(4)
+    budget = dataclasses.replace(tiny_config(4), stage_seconds=0.0)     # over budget after the first step
+    metrics = train("vqvae", budget, data, runs=tmp_path / "budget", progress=False)["vqvae"]
+    assert metrics["steps"] == 1 and checkpoint.load(tmp_path / "budget" / "vqvae" / "checkpoint.pt")["step"] == 1
+    assert checkpoint.load(tmp_path / "budget" / "vqvae" / "final.pt")["metrics"]["steps"] == 1
+    train("vqvae", tiny_config(4), data, runs=tmp_path / "budget", resume=True, progress=False)
+    train("vqvae", tiny_config(4), data, runs=tmp_path / "straight", progress=False)
+    a, b = (checkpoint.load(tmp_path / run / "vqvae" / "checkpoint.pt") for run in ("budget", "straight"))
+    assert a["step"] == b["step"] == 4
+    assert all(torch.equal(v, b["model"][k]) for k, v in a["model"].items())
+
+
+@pytest.mark.parametrize("flag", ["batch_size", "lr", "minutes"])
+def test_train_command_refuses_a_non_positive_override(tmp_path, flag):
+    with pytest.raises(TrainError, match="must be positive"):
+        train_command("vqvae", data=[str(tmp_path)], runs=str(tmp_path), **{flag: 0})
 
 
 def test_later_stage_without_prerequisite_is_a_clear_error(tmp_path):
