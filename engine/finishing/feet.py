@@ -59,6 +59,8 @@ class FeetConfig:
     min_step_m: float = 0.05          # plants closer than this need no room to step between them
     step_height: float = 0.08        # m; peak of a made-up step (the synthesizer's swing lift)
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
+    step_pop: float = 0.03           # m; a made-up step takes frames enough that the eased foot
+                                     # jolts (spikes off its neighbours' midpoint) at most this much
     settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
     max_crouch: float = 0.1          # m; most a body lowers so its legs reach their plants
     leg_extension: float = 0.98      # share of a leg's length its planted reach may take: a knee kept
@@ -116,8 +118,12 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
                 first = max(far[far < key], default=start - 1) + 1
                 end = min(far[far > key], default=stop)
                 if first - start >= config.step_frames + config.min_stance_frames:   # plants before it
-                    lift = _free_step(busy, first - config.step_frames, start + config.min_stance_frames,
-                                      key - config.step_frames, config.step_frames)
+                    # The step into the key's plant goes while the other foot stands, but not
+                    # long before the foot gets near: planted early, it was out of the leg's reach.
+                    preferred = first - config.step_frames
+                    lo = max(start + config.min_stance_frames, preferred - config.max_step_frames)
+                    hi = max(lo, min(key - config.step_frames, preferred + config.max_step_frames))
+                    lift = _free_step(busy, preferred, lo, hi, config.step_frames, int(np.clip(preferred, lo, hi)))
             if key is None or lift is not None:  # a plant of the foot's own, until it drifts
                 until = stop if lift is None else lift
                 drift = np.linalg.norm(foot[start:until, [0, 2]] - foot[start, [0, 2]], axis=-1)
@@ -130,22 +136,64 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
                 end = stop                       # no room for another plant: hold this one
             out.append((int(start), int(end)))
             start = end + config.step_frames
-    return _with_room_to_step(out, foot, config)
+    return _with_room_to_step(out, foot, config, keys, busy)
 
 
-def _with_room_to_step(intervals: list[tuple[int, int]], foot: np.ndarray, config: FeetConfig) -> list[tuple[int, int]]:
-    """A plant that ends fewer than step_frames before the next one starts, away from it, while
-    the foot has left it (by max_drift / 2) ends earlier, so that the foot takes step_frames to
-    get there: held to the end of its stance, a plant left the foot 0.4-0.7 m to cover in one
-    frame (a 20-30 cm pop of the knee)."""
+def _plant_spot(foot: np.ndarray, start: int, stop: int, keys: Sequence[int]) -> np.ndarray:
+    """Where (x, z) a stance [start, stop) plants the foot (N, 3): at its first key frame, where
+    the sketch put it, else its mean."""
+    held = [k for k in keys if start <= k < stop]
+    return foot[held[0], [0, 2]] if held else foot[start:stop, [0, 2]].mean(0)
+
+
+def _step_frames_for(distance: float, config: FeetConfig) -> int:
+    """Frames a made-up step of `distance` m needs so that its eased path (smoothstep from plant
+    to plant) spikes at most config.step_pop, within [step_frames, max_step_frames]."""
+    for frames in range(config.step_frames, config.max_step_frames):
+        s = np.arange(frames + 2) / (frames + 1)
+        path = np.concatenate([[0.0], smoothstep(s), [1.0]])
+        if distance * np.abs(path[1:-1] - 0.5 * (path[:-2] + path[2:])).max() <= config.step_pop:
+            return frames
+    return config.max_step_frames
+
+
+def _swings(foot: np.ndarray, stop: int, start: int, config: FeetConfig) -> bool:
+    """Whether the foot (N, 3) lifts itself off the floor between a plant's stop and the next
+    one's start (else _foot_goal makes up a step there)."""
+    return start > stop and foot[stop:start, 1].max() >= config.step_height
+
+
+def _with_room_to_step(intervals: list[tuple[int, int]], foot: np.ndarray, config: FeetConfig,
+                       keys: Sequence[int] = (), busy: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """Plants shortened so that the foot has frames enough to step from one to the next without
+    a jolt (_step_frames_for their distance): held to the ends of their stances, two plants
+    0.77 m apart left a gliding foot 4 frames to cover it (a 7 cm spike of the foot, 11 cm of the
+    knee). Each frame is taken from the plant the foot has left further behind at that frame; a
+    plant keeps min_stance_frames, its key frames and the frames the other foot is off (busy),
+    so that the person never has both feet in the air."""
+    free = np.ones(len(foot), bool) if busy is None else ~busy
     out = list(intervals)
     for i in range(len(out) - 1):
         (s1, e1), (s2, e2) = out[i], out[i + 1]
-        plant = foot[s1:e1, [0, 2]].mean(0)
-        apart = np.linalg.norm(plant - foot[s2:e2, [0, 2]].mean(0))
-        left = np.linalg.norm(foot[e1 - 1, [0, 2]] - plant)
-        if s2 - e1 < config.step_frames and apart > config.min_step_m and left > config.max_drift / 2:
-            out[i] = (s1, max(s1 + config.min_stance_frames, min(e1, s2 - config.step_frames)))
+        spot1, spot2 = _plant_spot(foot, s1, e1, keys), _plant_spot(foot, s2, e2, keys)
+        apart = float(np.linalg.norm(spot1 - spot2))
+        if apart <= config.min_step_m or s2 - e1 > config.max_step_frames or _swings(foot, e1, s2, config):
+            continue   # a swing of the foot's own keeps its own timing
+        last_key = max((k for k in keys if s1 <= k < e1), default=-1)
+        first_key = min((k for k in keys if s2 <= k < e2), default=len(foot))
+        need = _step_frames_for(apart, config)
+        while s2 - e1 < need:
+            can_end = e1 - 1 >= s1 + config.min_stance_frames and e1 - 1 > last_key and free[e1 - 1]
+            can_start = s2 + 1 <= e2 - config.min_stance_frames and s2 < first_key and free[s2]
+            if not (can_end or can_start):
+                break
+            behind_end = np.linalg.norm(foot[e1 - 1, [0, 2]] - spot1)
+            behind_start = np.linalg.norm(foot[s2, [0, 2]] - spot2)
+            end, start = (e1 - 1, s2) if can_end and (not can_start or behind_end >= behind_start) else (e1, s2 + 1)
+            if _swings(foot, end, start, config):
+                break     # made up, a step lifts the foot: frames where it lifts itself keep their plant
+            e1, s2 = end, start
+        out[i], out[i + 1] = (s1, e1), (s2, e2)
     return out
 
 
@@ -169,8 +217,7 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
     flat = maximum_filter1d(foot[:, 1], 3, mode="nearest") < config.stance_height
     for start, stop in intervals:
         on[start:stop] = True
-        held = [k for k in keys if start <= k < stop]
-        target[start:stop, [0, 2]] = foot[held[0], [0, 2]] if held else np.mean(foot[start:stop, [0, 2]], axis=0)
+        target[start:stop, [0, 2]] = _plant_spot(foot, start, stop, keys)
         target[start:stop, 1] = np.where(flat[start:stop], config.foot_height, foot[start:stop, 1])
     correction = target - foot                                                 # (N, 3), 0 off stance
     # Before the first stance, after the last and across long gaps the foot keeps its own path:
@@ -189,7 +236,7 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
             continue
         s = (frames[a:b] - a + 1) / (b - a + 1)
         ease = smoothstep(s)[:, None]
-        if foot[a:b, 1].max() < config.step_height:
+        if not _swings(foot, a, b, config):
             goal[a:b] = target[a - 1] + ease * (target[b] - target[a - 1])
             lift = config.step_height - config.foot_height
             goal[a:b, 1] = config.foot_height + lift * np.sqrt(np.sin(np.pi * s))
@@ -198,12 +245,11 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
             goal[a:b] = foot[a:b] + correction[a - 1] + ease * (correction[b] - correction[a - 1])
     # Plants and keys stay exact; everywhere else the correction changes smoothly (a foot that
     # left a plant at full speed, or went back to its own path in three frames, popped the knee).
-    # Made-up steps keep their heights: flattened, they would slide along the floor.
-    held = on.copy()
+    # Made-up steps are smooth already and stay exact: flattened, they slid along the floor, and
+    # smoothing their correction (not the step) brought back the glide's jolts.
+    held = on | stepped
     held[[k for k in keys if 0 <= k < n]] = True
-    stiffness = config.correction_frames ** 4
-    smooth = foot + np.concatenate([smooth_correction((goal - foot)[:, [0, 2]], held, stiffness),
-                                    smooth_correction((goal - foot)[:, [1]], held | stepped, stiffness)], -1)[:, [0, 2, 1]]
+    smooth = foot + smooth_correction(goal - foot, held, config.correction_frames ** 4)
     smooth[:, 1] = np.maximum(smooth[:, 1], np.minimum(goal[:, 1], config.foot_height))   # not into the floor
     return smooth
 
