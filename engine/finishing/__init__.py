@@ -32,7 +32,7 @@ from ..storyboard import Storyboard
 from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts, step_within_reach
 from .feet import FeetConfig, lock_feet, settle_on_ground
 from .keys import key_frames
-from .limbs import LimbConfig, steady_limbs
+from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .timing import retime_to_keys, with_hold_ends
 from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
 
@@ -61,7 +61,8 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
         scale = sketched_scale(offsets, storyboard, h) if storyboard is not None else 1.0
         root = joints[:, h, 0] * (1.0, scale, 1.0)
         offsets = offsets * scale
-        fixed.append(forward_kinematics(root, inverse_kinematics(joints[:, h], offsets), offsets))
+        rotations = steady_rotations(joints[:, h], root, inverse_kinematics(joints[:, h], offsets), offsets)
+        fixed.append(forward_kinematics(root, rotations, offsets))
         all_offsets.append(offsets)
     return np.stack(fixed, 1), np.stack(all_offsets)
 

@@ -40,3 +40,11 @@ def smooth_correction(correction: np.ndarray, held: np.ndarray, stiffness: float
     out = smooth_path(correction, np.where(held, HELD_WEIGHT, 1.0), stiffness)
     out[held] = correction[held]              # exactly, not to the solver's 1e-7
     return out
+
+
+def spike(path: np.ndarray) -> np.ndarray:
+    """How far each frame of a path (N, ..., 3) lies off the middle of its neighbours -> (N, ...);
+    the first and last frames 0."""
+    out = np.zeros(path.shape[:-1])
+    out[1:-1] = np.linalg.norm(path[1:-1] - 0.5 * (path[:-2] + path[2:]), axis=-1)
+    return out

@@ -182,10 +182,14 @@ def _with_room_to_step(intervals: list[tuple[int, int]], foot: np.ndarray, confi
         last_key = max((k for k in keys if s1 <= k < e1), default=-1)
         first_key = min((k for k in keys if s2 <= k < e2), default=len(foot))
         need = _step_frames_for(apart, config)
+        strict = True    # first while the other foot stands; then a brief hop beats a jolt
         while s2 - e1 < need:
-            can_end = e1 - 1 >= s1 + config.min_stance_frames and e1 - 1 > last_key and free[e1 - 1]
-            can_start = s2 + 1 <= e2 - config.min_stance_frames and s2 < first_key and free[s2]
+            can_end = e1 - 1 >= s1 + config.min_stance_frames and e1 - 1 > last_key and (free[e1 - 1] or not strict)
+            can_start = s2 + 1 <= e2 - config.min_stance_frames and s2 < first_key and (free[s2] or not strict)
             if not (can_end or can_start):
+                if strict:
+                    strict = False
+                    continue
                 break
             behind_end = np.linalg.norm(foot[e1 - 1, [0, 2]] - spot1)
             behind_start = np.linalg.norm(foot[s2, [0, 2]] - spot2)
@@ -323,8 +327,11 @@ def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.nd
     axis = normalize(poses[:, ankle] - poses[:, hip])
     bend = poses[:, knee] - poses[:, hip]
     bend -= np.sum(bend * axis, axis=-1, keepdims=True) * axis
-    facing = np.cross(poses[:, HIPS[0]] - poses[:, HIPS[1]], UP)
+    facing = normalize(np.cross(poses[:, HIPS[0]] - poses[:, HIPS[1]], UP))
     pole = steady_pole(bend, facing)
+    # A knee never bends backwards: a nearly straight leg's bend is noise, and followed, it bent
+    # the knee back for a few frames, then flipped it forward (a 42 cm pop).
+    pole -= 2.0 * np.minimum(np.sum(pole * facing, axis=-1, keepdims=True), 0.0) * facing
     out[:, knee], out[:, ankle] = two_bone_ik(poses[:, hip], foot_goal - foot_offset, upper, lower, pole)
     out[:, toe] = out[:, ankle] + foot_offset
     return out

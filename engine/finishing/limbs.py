@@ -17,9 +17,9 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
-from ..geometry.rotations import normalize
-from ..skeleton import JOINT_INDEX
-from .blend import smooth_path
+from ..geometry.rotations import matrix_to_6d, normalize, sixd_to_matrix
+from ..skeleton import JOINT_INDEX, forward_kinematics
+from .blend import smooth_path, spike
 
 LIMBS = tuple(tuple(JOINT_INDEX[f"{side}_{joint}"] for joint in chain)
               for chain in (("hip", "knee", "ankle"), ("shoulder", "elbow", "wrist")) for side in "lr")
@@ -34,14 +34,6 @@ class LimbConfig:
     popping_weight: float = 0.3  # how much a popping frame's own place counts against smoothness
     spread: int = 2              # frames either side of a pop that are smoothed with it
     passes: int = 3
-
-
-def _spike(path: np.ndarray) -> np.ndarray:
-    """How far each frame of a path (N, ..., 3) lies off the middle of its neighbours -> (N, ...);
-    the first and last frames 0."""
-    out = np.zeros(path.shape[:-1])
-    out[1:-1] = np.linalg.norm(path[1:-1] - 0.5 * (path[:-2] + path[2:]), axis=-1)
-    return out
 
 
 def on_circle(root: np.ndarray, end: np.ndarray, upper: np.ndarray, lower: np.ndarray,
@@ -73,7 +65,7 @@ def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig()) -> np.nd
         for _ in range(config.passes):
             path = out[:, :, mid]                                                  # (N, H, 3)
             # A middle joint that only follows a spike of its ends is not popping.
-            excess = _spike(path) - np.maximum(_spike(out[:, :, root]), _spike(out[:, :, end]))
+            excess = spike(path) - np.maximum(spike(out[:, :, root]), spike(out[:, :, end]))
             popping = maximum_filter1d(excess > config.tolerance, 2 * config.spread + 1, axis=0)
             if not popping.any():
                 break
@@ -82,3 +74,28 @@ def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig()) -> np.nd
                 goal[:, h] = smooth_path(path[:, h], np.where(popping[:, h], config.popping_weight, 1.0), stiffness)
             out[:, :, mid] = on_circle(out[:, :, root], out[:, :, end], upper, lower, goal)
     return out
+
+
+def steady_rotations(generated: np.ndarray, root: np.ndarray, rotations: np.ndarray, offsets: np.ndarray,
+                     config: LimbConfig = LimbConfig()) -> np.ndarray:
+    """Local rotations (N, 22, 3, 3) of one person whose FK pops where the generated joints
+    (N, 22, 3) do not, smoothed over time there; root (N, 3), offsets (22, 3) -> rotations.
+
+    Fitting one rigid skeleton to joints whose bones change length from frame to frame (the
+    decoder's) can jolt the chain: the spine's branch fits turned the shoulders 8 cm in a frame
+    while the generated ones moved smoothly. Frames whose joints spike more than the generated
+    ones by config.tolerance (and `spread` frames around) get rotations smoothed like steady_limbs'
+    knees; the rest are left exactly."""
+    n = len(rotations)
+    if n < 3:
+        return rotations
+    wanted = spike(generated)                                                   # (N, 22)
+    for _ in range(config.passes):
+        popping = (spike(forward_kinematics(root, rotations, offsets)) - wanted).max(axis=-1) > config.tolerance
+        if not popping.any():
+            break
+        popping = maximum_filter1d(popping, 2 * config.spread + 1)
+        six = smooth_path(matrix_to_6d(rotations).reshape(n, -1), np.where(popping, config.popping_weight, 1.0),
+                          config.smooth_frames ** 4)
+        rotations = np.where(popping[:, None, None, None], sixd_to_matrix(six.reshape(n, -1, 6)), rotations)
+    return rotations

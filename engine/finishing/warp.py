@@ -3,8 +3,9 @@
 A generated motion follows its sketch only roughly. At every keyframe the warp solves the pose
 that lands exactly on the sketched keypose in the sketch plane, and along every pelvis stroke
 the root position that lies on the stroke; the differences (each joint's displacement from the
-pelvis in the body's own frame, an offset of the root) are spread over the neighbouring frames,
-so the motion keeps its own dynamics while passing through the sketch.
+pelvis in the body's own frame, an offset of the root) are spread over the neighbouring frames
+(the root's from key to key, the pose's fading within pose_falloff of its key), so the motion
+keeps its own dynamics while passing through the sketch.
 
 A 2D sketch does not give depth; the ground does. Every sketched joint slides along its camera
 ray to a depth that keeps the generated pose's depth differences along its bones while the feet
@@ -39,8 +40,11 @@ LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera 
 
 @dataclass
 class WarpConfig:
-    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "path_smoothing")   # frames at TUNED_FPS
+    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "pose_falloff", "path_smoothing")   # frames at TUNED_FPS
     falloff: int = 12             # frames over which an offset fades in before the first key / out after the last
+    pose_falloff: int = 20        # frames over which a key's pose change (not its place) fades out between
+                                  # keys: spread over a 66-frame walk, a posed figure's straight template
+                                  # knee turned with the body and swung the knee 40 cm in a frame
     path_smoothing: float = 4.0   # frames; Gaussian sigma of the per-frame path offsets
     path_passes: int = 2          # smoothing pulls points off the stroke a little; project again
     path_tolerance: float = 0.03  # m in the sketch plane; closer than this to its stroke, a pelvis is
@@ -164,7 +168,8 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         moved = posed - posed[:, PELVIS:PELVIS + 1] - body[frames]
         local = np.einsum("kji,kpj->kpi", turn[frames], moved)                   # world -> body frame
         root = joints[:, h, PELVIS] + spread(n, frames, posed[:, PELVIS] - joints[frames, h, PELVIS], config.falloff)
-        target = root[:, None] + body + np.einsum("nij,npj->npi", turn, spread(n, frames, local, config.falloff))
+        pose = spread(n, frames, local, config.falloff) * closeness_to_keys(n, frames, config.pose_falloff)[:, None, None]
+        target = root[:, None] + body + np.einsum("nij,npj->npi", turn, pose)
         out[:, h] = forward_kinematics(root, inverse_kinematics(target, offsets[h]), offsets[h])
         # The refit moved the feet (a keypose's solved bones are not quite the skeleton's): around
         # the keys the legs reach for the warped feet. Further out the refit's own legs stay

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from engine.finishing import lasting_as_long
-from engine.finishing.feet import HIPS, KNEES, FeetConfig, _foot_goal, lock_feet, settle_on_ground, stance_intervals
+from engine.finishing.feet import (HIPS, KNEES, FeetConfig, _foot_goal, _with_room_to_step, lock_feet, reach_with_leg,
+                                  settle_on_ground, stance_intervals)
 from engine.metrics import foot_skate_ratio
 from engine.skeleton import ANKLES, FEET, bone_lengths, rest_pose
 from engine.synth import SCENARIOS, synthesize
@@ -136,10 +137,26 @@ def test_a_fast_glide_between_plants_becomes_a_step_without_a_jolt():
     foot[:, 1] = config.foot_height
     intervals = stance_intervals(foot, FPS, config)
     assert len(intervals) == 2 and intervals[1][0] - intervals[0][1] >= 7
-    goal = _foot_goal(foot, intervals, config)
-    spike = np.linalg.norm(goal[1:-1] - 0.5 * (goal[:-2] + goal[2:]), axis=-1)
-    assert spike.max() <= config.step_pop + 0.005
-    assert goal[:, 1].max() > 0.05                               # it lifts: no slide
+    busy = np.zeros(n, bool)           # the other foot up at those frames too: a brief hop beats the jolt
+    busy[27:38] = True
+    for other_up in (None, busy):
+        intervals = stance_intervals(foot, FPS, config, other_up)
+        goal = _foot_goal(foot, intervals, config)
+        spike = np.linalg.norm(goal[1:-1] - 0.5 * (goal[:-2] + goal[2:]), axis=-1)
+        assert spike.max() <= config.step_pop + 0.005
+        assert goal[:, 1].max() > 0.05                           # it lifts: no slide
+
+
+def test_a_step_with_no_room_while_the_other_foot_stands_takes_a_brief_hop():
+    """Two plants 0.77 m apart, 4 frames between them, the second short, the other foot up
+    before the gap: rather than a 4-frame step (a jolt) the first plant ends early."""
+    n, config = 50, FeetConfig()
+    foot = np.zeros((n, 3))
+    foot[42:, 0] = 0.77
+    busy = np.zeros(n, bool)
+    busy[30:38] = True
+    (_, end), (start, _) = _with_room_to_step([(0, 38), (42, 46)], foot, config, busy=busy)
+    assert start - end >= 7
 
 
 def test_a_body_too_tall_for_its_planted_legs_crouches_until_the_feet_reach_the_ground():
@@ -184,3 +201,20 @@ def test_durations_last_as_long_at_any_frame_rate():
     assert at40.stance_speed == FeetConfig().stance_speed and at40.max_drift == FeetConfig().max_drift
     assert lasting_as_long(FeetConfig(), 20.0) == FeetConfig()
     assert lasting_as_long(FeetConfig(), 1.0).min_stance_frames == 1      # never below one frame
+
+
+def test_a_nearly_straight_leg_never_bends_its_knee_backwards():
+    """A standing leg whose knee sits 4 cm behind the hip-ankle line (noise): reaching a foot
+    goal 10 cm higher bends the knee forward, the way the body faces."""
+    poses = np.repeat(rest_pose()[None], 5, 0)
+    hip, knee, ankle, foot = HIPS[0], KNEES[0], ANKLES[0], FEET[0]
+    facing = np.cross(poses[0, HIPS[0]] - poses[0, HIPS[1]], (0.0, 1.0, 0.0))
+    facing /= np.linalg.norm(facing)
+    poses[:, knee] -= 0.04 * facing
+    goal = poses[:, foot] + (0.0, 0.1, 0.0)
+    out = reach_with_leg(poses, 0, goal)
+    line = out[:, ankle] - out[:, hip]
+    bend = out[:, knee] - out[:, hip]
+    bend -= np.sum(bend * line, -1, keepdims=True) / np.sum(line * line, -1, keepdims=True) * line
+    assert (bend @ facing > 0.05).all()
+    np.testing.assert_allclose(out[:, foot], goal, atol=1e-6)

@@ -4,8 +4,9 @@ import numpy as np
 
 from engine.bench.animator import pop
 from engine.finishing.blend import smooth_correction, smooth_path
-from engine.finishing.limbs import LIMBS, LimbConfig, on_circle, steady_limbs
-from engine.skeleton import bone_lengths
+from engine.finishing.limbs import LIMBS, LimbConfig, on_circle, steady_limbs, steady_rotations
+from engine.geometry.rotations import axis_angle_to_matrix
+from engine.skeleton import JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
 from engine.synth import synthesize
 
 MIDDLE = [mid for _, mid, _ in LIMBS]
@@ -67,3 +68,22 @@ def test_motion_that_does_not_pop_is_left_exactly():
     clean = synthesize("carry_together", 1, fps=20).joints.astype(float)
     config = LimbConfig(tolerance=1.0)            # nothing is off its neighbours' middle by a metre
     assert np.array_equal(steady_limbs(clean, config), clean)
+
+
+def test_a_chest_that_jolts_in_the_skeleton_fit_is_steadied_and_the_rest_kept():
+    """The rigid fit turned the chest 30 degrees for one frame (as a branch fit of bones that change
+    length can): the shoulders and arms pop; steady_rotations smooths the rotations there, and
+    frames away from it keep their rotations exactly."""
+    clean = synthesize("handoff", 0, fps=20).joints.astype(float)[:, 0]
+    offsets = fit_offsets(clean)
+    rotations = inverse_kinematics(clean, offsets)
+    fitted = forward_kinematics(clean[:, 0], rotations, offsets)
+    jolted = rotations.copy()
+    chest = JOINT_INDEX["spine3"]
+    jolted[40, chest] = jolted[40, chest] @ axis_angle_to_matrix(np.array([0.0, np.radians(30), 0.0]))
+    steadied = steady_rotations(clean, clean[:, 0], jolted, offsets)
+    out = forward_kinematics(clean[:, 0], steadied, offsets)
+    around = slice(35, 46)
+    assert pop(forward_kinematics(clean[:, 0], jolted, offsets)[around, None]) > 0.1
+    assert pop(out[around, None]) <= pop(fitted[around, None]) + 0.02
+    assert np.array_equal(steadied[:30], jolted[:30]) and np.array_equal(steadied[51:], jolted[51:])

@@ -143,3 +143,18 @@ def test_finish_without_keyposes_or_strokes_only_fixes_the_skeleton(scene):
     # Knees and elbows may move where the synthesized clip's own feet pop (by 38 cm here).
     assert np.delete(moved, [mid for _, mid, _ in LIMBS], axis=2).max() < 0.05
     assert pop(done.joints.astype(float)) <= pop(clip.joints.astype(float)) + 1e-6
+
+
+def test_a_keys_pose_change_fades_out_between_keys_far_apart(scene):
+    """Keys 3 s apart: half way between them the pose is the generated one (its place moves with
+    the root): a key's pose change spread over a whole walk turned the posed figure's straight
+    template knee with the body."""
+    clip, sb = scene
+    raised = clip.joints.astype(float)
+    raised[:, :, 16:] += (0.0, 0.2, 0.0)                      # arms 20 cm up all along; the keys have them down
+    joints, offsets = consistent_skeleton(raised)
+    sb.keyposes = [k for k in sb.keyposes if k.frame in (0, sb.length - 1)]
+    warped = warp_to_keyposes(joints, offsets, sb)
+    middle = sb.length // 2
+    pose = lambda j: j[middle] - j[middle, :, :1]
+    assert np.abs(pose(warped) - pose(joints)).max() < 0.03
