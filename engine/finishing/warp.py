@@ -42,9 +42,10 @@ LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera 
 class WarpConfig:
     DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "pose_falloff", "path_smoothing")   # frames at TUNED_FPS
     falloff: int = 12             # frames over which an offset fades in before the first key / out after the last
-    pose_falloff: int = 20        # frames over which a key's pose change (not its place) fades out between
-                                  # keys: spread over a 66-frame walk, a posed figure's straight template
-                                  # knee turned with the body and swung the knee 40 cm in a frame
+    pose_falloff: int = 60        # frames over which a key's pose change (not its place) fades out between
+                                  # keys: spread whole over a 66-frame walk, a posed figure's straight template
+                                  # knee turned with the body and swung the knee 40 cm in a frame (20 frames
+                                  # did as well for pops but moved the pelvis paths 1.3 cm further off)
     path_smoothing: float = 4.0   # frames; Gaussian sigma of the per-frame path offsets
     path_passes: int = 2          # smoothing pulls points off the stroke a little; project again
     path_tolerance: float = 0.03  # m in the sketch plane; closer than this to its stroke, a pelvis is
