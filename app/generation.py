@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from engine.sampling.config import DEFAULT_STEPS
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard
 
@@ -19,7 +20,7 @@ from engine.storyboard import Storyboard
 @dataclass(frozen=True)
 class GenerationSettings:
     """What the properties panel edits; mirrors the sampler's SamplerConfig."""
-    steps: int = 30
+    steps: int = DEFAULT_STEPS
     seed: int = 0
     cfg: float = 1.6
     use_energy: bool = True

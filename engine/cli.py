@@ -9,6 +9,7 @@ import argparse
 import sys
 
 from .atomic import check_output_path
+from .sampling.config import DEFAULT_STEPS
 
 
 class UserError(Exception):
@@ -223,7 +224,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("generate", parents=[computes], help="generate motion for a storyboard")
     s.add_argument("storyboard")
     s.add_argument("-o", "--output", required=True, metavar="MOTION.npz")
-    s.add_argument("--steps", type=int, default=30, help="solver steps (default 30; DDIM steps for teacher-ddim)")
+    s.add_argument("--steps", type=int, default=DEFAULT_STEPS,
+                   help=f"solver steps (default {DEFAULT_STEPS}; DDIM steps for teacher-ddim)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--cfg", type=float, default=1.6, help="classifier-free guidance weight (default 1.6)")
     s.add_argument("--method", choices=["student", "teacher-ddpm", "teacher-ddim", "retrieval"], default="student")
@@ -245,7 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("demo", parents=[computes], help="run the bundled example storyboards headless; contact sheets and GIFs")
     s.add_argument("-o", "--output", default="demo_out")
-    s.add_argument("--steps", type=int, default=30)
+    s.add_argument("--steps", type=int, default=DEFAULT_STEPS)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--no-render", action="store_true", help="skip the contact sheets and GIFs")
     s.set_defaults(func=cmd_demo)

@@ -33,7 +33,9 @@ class Method:
     untrained: bool = False             # run on freshly initialised weights (what finishing alone does)
 
 
-OURS = Method("ours", "Ours", SamplerConfig(steps=30))
+OURS = Method("ours", "Ours", SamplerConfig())
+# The same with three times the steps: what the default's speed costs (engine.sampling.config).
+OURS_30 = Method("ours_30", "Ours, 30 steps", SamplerConfig(steps=30))
 # The paper's baseline as it is: the teacher's samples, without our finishing pass.
 TEACHER_DDPM = Method("teacher_ddpm", "COLLAGE Teacher (DDPM-1000)", SamplerConfig(method="teacher-ddpm", finish=False))
 TEACHER_DDIM = Method("teacher_ddim", "COLLAGE Teacher (DDIM-50)",
@@ -42,23 +44,23 @@ TEACHER_DDIM = Method("teacher_ddim", "COLLAGE Teacher (DDIM-50)",
 TEACHER_DDPM_FINISHED = Method("teacher_ddpm_fin", "Teacher (DDPM-1000) + finishing", SamplerConfig(method="teacher-ddpm"))
 TEACHER_DDIM_FINISHED = Method("teacher_ddim_fin", "Teacher (DDIM-50) + finishing",
                                SamplerConfig(method="teacher-ddim", steps=50))
-UNTRAINED_FINISHED = Method("untrained_fin", "untrained + finishing", SamplerConfig(steps=30), untrained=True)
+UNTRAINED_FINISHED = Method("untrained_fin", "untrained + finishing", SamplerConfig(), untrained=True)
 RETRIEV_ADAPT = Method("retrievadapt", "RetrievAdapt", None)
-STEADY = Method("ours_steady", "Ours, steady", SamplerConfig(steps=30, guidance_max_rate=STEADY_GUIDANCE_RATE))
+STEADY = Method("ours_steady", "Ours, steady", SamplerConfig(guidance_max_rate=STEADY_GUIDANCE_RATE))
 ABLATIONS = (
-    Method("wo_finishing", "w/o finishing", SamplerConfig(steps=30, finish=False)),
-    Method("wo_energy", "w/o Energy", SamplerConfig(steps=30, use_energy=False)),
-    Method("wo_ctmc", "w/o CTMC", SamplerConfig(steps=30, use_ctmc=False)),
-    Method("wo_latent", "w/o latent grounding", SamplerConfig(steps=30, use_latent=False)),
-    Method("wo_temporal_bias", "w/o temporal bias", SamplerConfig(steps=30, use_temporal_bias=False)),
-    Method("trajectory_only", "trajectory-only", SamplerConfig(steps=30, trajectory_only=True)),
+    Method("wo_finishing", "w/o finishing", SamplerConfig(finish=False)),
+    Method("wo_energy", "w/o Energy", SamplerConfig(use_energy=False)),
+    Method("wo_ctmc", "w/o CTMC", SamplerConfig(use_ctmc=False)),
+    Method("wo_latent", "w/o latent grounding", SamplerConfig(use_latent=False)),
+    Method("wo_temporal_bias", "w/o temporal bias", SamplerConfig(use_temporal_bias=False)),
+    Method("trajectory_only", "trajectory-only", SamplerConfig(trajectory_only=True)),
 )
 # The few-step preview student: as an artist sees it while dragging, and with the full guidance
 # and finishing (where quality holds, the way to a full generation at 20x the teacher).
 PREVIEW = Method("ours_preview", "Ours, preview", sampler_config(preview=True))
 FEW_STEP = Method("ours_few_step", "Ours, preview student + full guidance and finishing",
                   replace(sampler_config(), few_step=True, ctmc_every=1))
-ALL_METHODS = (OURS, PREVIEW, FEW_STEP, STEADY, TEACHER_DDPM, TEACHER_DDIM, TEACHER_DDPM_FINISHED, TEACHER_DDIM_FINISHED,
+ALL_METHODS = (OURS, OURS_30, PREVIEW, FEW_STEP, STEADY, TEACHER_DDPM, TEACHER_DDIM, TEACHER_DDPM_FINISHED, TEACHER_DDIM_FINISHED,
                UNTRAINED_FINISHED, RETRIEV_ADAPT) + ABLATIONS
 
 

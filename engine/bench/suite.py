@@ -21,7 +21,7 @@ from ..baselines.retrieval import default_index
 from . import diagnostics, plots
 from .animator import ANIMATOR_TARGETS
 from .protocol import REPO_ROOT, ProtocolConfig, build_protocols
-from .runner import (ABLATIONS, ALL_METHODS, FEW_STEP, OURS, PREVIEW, RETRIEV_ADAPT, STEADY, TEACHER_DDIM,
+from .runner import (ABLATIONS, ALL_METHODS, FEW_STEP, OURS, OURS_30, PREVIEW, RETRIEV_ADAPT, STEADY, TEACHER_DDIM,
                      TEACHER_DDIM_FINISHED, TEACHER_DDPM, TEACHER_DDPM_FINISHED, RunnerConfig, generate, run_protocol)
 from .scores import by_key, by_method, paired
 from .speed import SpeedConfig, speed_table
@@ -60,7 +60,7 @@ class BenchConfig:
         return cls(protocol=ProtocolConfig(per_scenario=1, noise_scenes=2, real_windows=1, artist_scenes=5),
                    runner=RunnerConfig(variations=2, diversity_items=1, ddpm_items=1),
                    speed=SpeedConfig(repeats=3, ddpm_repeats=1),
-                   speed_methods=(OURS, PREVIEW, FEW_STEP, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT),
+                   speed_methods=(OURS, OURS_30, PREVIEW, FEW_STEP, TEACHER_DDPM, TEACHER_DDIM, RETRIEV_ADAPT),
                    scaling_methods=(OURS, TEACHER_DDIM, RETRIEV_ADAPT),
                    sweep_cfg=(1.0, 1.6, 2.5), sweep_items=2, trace_methods=(OURS, ABLATIONS[0]), trace_items=1,
                    stability_items=5, fidelity_items=5)

@@ -1,6 +1,6 @@
 """The guided streaming sampler (paper sections 3.2-3.4 and 4): one generator for every method.
 
-    gen = sample(bundle, Request.build(storyboard, SamplerConfig(steps=30, seed=0)))
+    gen = sample(bundle, Request.build(storyboard, SamplerConfig(seed=0)))
     for event in gen:            # one StepEvent per solver step; gen.close() cancels
         ...
     result = <StopIteration.value>  (a GenerationResult)
