@@ -117,16 +117,18 @@ def matrix_to_quat(R: np.ndarray) -> np.ndarray:
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Smallest rotation taking direction a to direction b. (..., 3), (..., 3) -> (..., 3, 3)."""
     a, b = normalize(a), normalize(b)
-    axis = np.cross(a, b)
-    s = np.linalg.norm(axis, axis=-1, keepdims=True)
-    c = np.sum(a * b, axis=-1, keepdims=True)
-    angle = np.arctan2(s, c)
-    # Antiparallel: rotate by pi about any axis perpendicular to a.
-    anti = (s[..., 0] < 1e-8) & (c[..., 0] < 0)
+    v = np.cross(a, b)
+    c = np.sum(a * b, axis=-1)[..., None, None]
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    zero = np.zeros_like(x)
+    K = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], axis=-1).reshape(v.shape[:-1] + (3, 3))
+    # I + K + K^2 / (1 + c): Rodrigues without the angle (the finishing's IK calls this most).
+    out = np.eye(3) + K + (K @ K) / np.maximum(1.0 + c, 1e-12)
+    anti = c[..., 0, 0] < -1.0 + 1e-6   # near antiparallel: a half turn about an axis across a
     if np.any(anti):
         helper = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
-        axis = np.where(anti[..., None], np.cross(a, helper), axis)
-    return axis_angle_to_matrix(normalize(axis) * angle)
+        out[anti] = axis_angle_to_matrix(np.pi * normalize(np.cross(a, helper)))[anti]
+    return out
 
 
 def kabsch(src: np.ndarray, dst: np.ndarray) -> np.ndarray:

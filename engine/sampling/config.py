@@ -46,7 +46,7 @@ class SamplerConfig:
                                     # (STEADY_GUIDANCE_RATE: steadier under edits, more foot skate)
     latent_weight: float = 0.01     # eta_lat, weight of E_lat against the raw energies (f_gamma's
                                     # regression pulls towards an average motion: at 0.05, K3D +0.4 cm)
-    final_refine_steps: int = 4     # extra energy steps on the final latent (physics stage)
+    final_refine_steps: int = 2     # extra energy steps on the final latent (physics stage; 4 measured no better)
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
     langevin_step_size: float = 1e-3
     finish: bool = True             # engine.finishing on the final clips ("w/o finishing")
