@@ -83,7 +83,8 @@ def cmd_train(args) -> int:
     from .training.command import TrainError, train_command
     try:
         train_command(args.stage, args.config, args.data, args.real, args.steps, args.resume, args.runs,
-                      args.threads, args.from_bundle, args.batch_size, args.lr, args.minutes, args.workers)
+                      args.threads, args.from_bundle, args.batch_size, args.lr, args.minutes, args.workers,
+                      args.artist_share, args.warm_start)
     except TrainError as e:
         raise UserError(str(e)) from None
     return 0
@@ -206,6 +207,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stop each stage after M minutes, saved like a finished one; --resume goes on")
     s.add_argument("--workers", type=int, metavar="N",
                    help="processes that draw the storyboards (overrides the config; a GPU waits on them without)")
+    s.add_argument("--artist-share", type=float, default=0.0, metavar="P",
+                   help="share of training storyboards redrawn the way artists draw (engine.artist_sketch)")
+    s.add_argument("--warm-start", action="store_true",
+                   help="start from the stage's own runs/STAGE/final.pt (fine-tune; with --from-bundle, the shipped one)")
     s.add_argument("--runs", default="runs", help="output root (default runs/)")
     s.add_argument("--from-bundle", metavar="BUNDLE.pt",
                    help="take the earlier stages a stage needs from this bundle where runs/ lacks them "

@@ -38,6 +38,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from .artist_sketch import redrawn
 from .clip import ClipError, MotionClip
 from .controls import build_controls
 from .geometry.rotations import matrix_to_quat, quat_to_matrix
@@ -64,6 +65,8 @@ class DatasetConfig:
     noise_range: tuple[float, float] = (0.0, 0.8)
     random_yaw: bool = True
     sketch: SketchifyConfig = field(default_factory=SketchifyConfig.training)
+    artist_share: float = 0.0         # storyboards redrawn the way artists draw (engine.artist_sketch),
+                                      # half by hand, half posed with the canvas's tools
     seed: int = 0
 
 
@@ -144,7 +147,10 @@ class StoryboardWindows(Dataset):
         clip = self.clips[clip_index]
         window, valid = _window(clip, int(start), cfg.window)
         window = canonicalize(window, yaw)
-        controls = build_controls(sketchify(window, keyframes, noise, sketch_seed, config=cfg.sketch))
+        storyboard = sketchify(window, keyframes, noise, sketch_seed, config=cfg.sketch)
+        if cfg.artist_share > 0 and rng.random() < cfg.artist_share:   # no draw at 0: streams unchanged
+            storyboard = redrawn(storyboard, sketch_seed, posed=bool(rng.integers(2)))
+        controls = build_controls(storyboard)
 
         item = _motion_arrays(window)
         item["valid"] = valid

@@ -7,7 +7,7 @@ and drawn paths differ between scenes and stay fixed between runs):
   noise         the first few of those scenes sketched at each noise level (same sketch seed, so
                 camera, keyframes and strokes chosen stay the same and only the roughness grows).
   real          120-frame windows of the held-out CMU salsa take (two people, no object).
-  artist        the first few scenes drawn the way artists draw (engine.bench.artist): by hand,
+  artist        the first few scenes drawn the way artists draw (engine.artist_sketch): by hand,
                 and posed with the canvas's tools; scored against the clean held-out clip.
 
 Held-out synthesized scenes: the test split of data/synth (engine.dataset.split_files: file
@@ -27,7 +27,7 @@ from ..dataset import HELD_OUT_SALSA_TAKES, split_files
 from ..sketchify import sketchify
 from ..storyboard import Storyboard
 from ..synth import SCENARIOS, synthesize
-from .artist import hand_drawn, posed_with_tools
+from ..artist_sketch import hand_drawn, posed_with_tools
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 RESERVED_TEST_SEEDS = range(0, 50)      # the seeds the split rule assigns to test (see docstring)
@@ -41,7 +41,7 @@ class ProtocolConfig:
     per_scenario: int = 10             # sketch-only storyboards per scenario
     noise_scenes: int = 10             # scenes re-sketched at each noise level
     noise_levels: tuple[float, ...] = NOISE_LEVELS
-    artist_scenes: int = 10            # scenes drawn both ways by engine.bench.artist
+    artist_scenes: int = 10            # scenes drawn both ways by engine.artist_sketch
     real_windows: int = 3              # windows of the held-out salsa take
     window: int = 120                  # frames per real window (6 s at 20 fps)
     real_stride: int = 30
@@ -146,7 +146,7 @@ def build_protocols(config: ProtocolConfig = ProtocolConfig()) -> list[Protocol]
     artist = Protocol("artist", "Drawn the way artists draw (by hand, and posed with the app's tools)",
                       [BenchItem(f"{i} {kind}", kind, 0.0, make(sketchify(c, config.keyframes, 0.0, seed), seed), c)
                        for i, c, seed in drawn for kind, make in ARTIST_KINDS.items()],
-                      [f"{len(drawn)} scenes x {', '.join(ARTIST_KINDS)} (engine.bench.artist: figures stretched "
+                      [f"{len(drawn)} scenes x {', '.join(ARTIST_KINDS)} (engine.artist_sketch: figures stretched "
                        f"up to 12%, joints 2-3 cm off, spine and collars often unplaced, keys and contact spans "
                        f"a few frames off, strokes of 8-20 points, boxes as four corners; or the canvas's "
                        f"standing template with the end effectors dragged); 3D errors against the clean clip."])

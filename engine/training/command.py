@@ -20,7 +20,7 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
                   real: list[str] | None = None, steps: int | None = None, resume: bool = False,
                   runs: str = "runs", threads: int | None = None, from_bundle: str | None = None,
                   batch_size: int | None = None, lr: float | None = None, minutes: float | None = None,
-                  workers: int | None = None) -> dict:
+                  workers: int | None = None, artist_share: float = 0.0, warm_start: bool = False) -> dict:
     from ..dataset import DatasetConfig, StoryboardWindows, split_files
     cfg = CONFIGS[config]()
     if steps is not None:
@@ -40,6 +40,9 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
         cfg.stage_seconds = 60.0 * minutes
     if workers is not None:
         cfg.num_workers = max(0, workers)
+    if not 0.0 <= artist_share <= 1.0:
+        raise TrainError(f"--artist-share must be between 0 and 1, got {artist_share}")
+    cfg.warm_start = warm_start
     files = []
     for folder in data or []:
         if not Path(folder).is_dir():
@@ -51,7 +54,7 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
         files += split_files(real_dir=folder).train
     if not files:
         raise TrainError("no training clips: pass --data DIR (synthesized clips) and/or --real DIR (imported capture)")
-    dataset = StoryboardWindows(files, DatasetConfig(seed=cfg.seed))
+    dataset = StoryboardWindows(files, DatasetConfig(seed=cfg.seed, artist_share=artist_share))
     if len(dataset) == 0:
         raise TrainError("the clip folders hold no clip long enough for a training window")
     if from_bundle is not None:

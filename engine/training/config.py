@@ -26,6 +26,7 @@ class TrainConfig:
     seed: int = 0
     checkpoint_every_s: float = 180.0
     stage_seconds: float | None = None   # wall-clock budget of one stage run: it stops early, saved (resume goes on)
+    warm_start: bool = False         # a fresh run starts from the stage's own final.pt where there is one (fine-tuning)
     log_every: int = 10
     num_workers: int = 0
     threads: int | None = None       # torch CPU threads (None: engine.cpu chooses, and re-chooses as load changes)

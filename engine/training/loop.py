@@ -101,6 +101,13 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
     run_dir = Path(run_dir)
     steps = cfg.steps_for(task.name)
     model = task.trainable.to(device)
+    ckpt_path = run_dir / "checkpoint.pt"
+    resuming = resume and ckpt_path.exists()
+    if cfg.warm_start and not resuming and (run_dir / "final.pt").exists():   # fine-tune what the stage made
+        made = checkpoint.load(run_dir / "final.pt")["parts"]
+        for name, part in model.items():
+            if name in made:
+                part.load_state_dict(made[name])
     for frozen in task.frozen.values():
         frozen.to(device)
     module = _LossModule(task)
@@ -110,8 +117,7 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
     ema = EMA(model, cfg.ema_decay)
     torch.manual_seed(cfg.seed * 7919 + rank)
     start, elapsed_before = 0, 0.0
-    ckpt_path = run_dir / "checkpoint.pt"
-    if resume and ckpt_path.exists():
+    if resuming:
         state = checkpoint.load(ckpt_path)
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])

@@ -80,6 +80,32 @@ def test_time_budget_stops_early_saved_and_resume_goes_on(tmp_path):
     assert all(torch.equal(v, b["model"][k]) for k, v in a["model"].items())
 
 
+def test_warm_start_fine_tunes_from_the_stages_own_final_weights(tmp_path):
+    """At learning rate 0 a warm-started run ends where the stage's final.pt began it; a fresh
+    run (no warm start) begins from new weights."""
+    data = FakeClips(4)
+    train("encoders", tiny_config(2), data, runs=tmp_path, progress=False)
+    before = checkpoint.load(tmp_path / "encoders" / "final.pt")["parts"]["conditioner"]
+    still = dataclasses.replace(tiny_config(1), lr=0.0, warm_start=True, seed=5)
+    train("encoders", still, data, runs=tmp_path / "x", progress=False)   # nothing to start from there
+    fresh = checkpoint.load(tmp_path / "x" / "encoders" / "final.pt")["parts"]["conditioner"]
+    train("encoders", still, data, runs=tmp_path, progress=False)
+    after = checkpoint.load(tmp_path / "encoders" / "final.pt")["parts"]["conditioner"]
+    assert all(torch.allclose(after[k].float(), v.float()) for k, v in before.items())
+    assert not all(torch.allclose(fresh[k].float(), v.float()) for k, v in before.items())
+
+
+def test_artist_style_training_storyboards_change_the_sketch_not_the_motion(tmp_path):
+    from engine.dataset import DatasetConfig, StoryboardWindows
+    from engine.synth import synthesize
+    path = tmp_path / "clip.npz"
+    synthesize("handoff", 0, fps=20).save(path)
+    clean, drawn = (StoryboardWindows([path], DatasetConfig(artist_share=share))[0] for share in (0.0, 1.0))
+    assert torch.equal(clean["joints"], drawn["joints"])
+    assert not torch.equal(clean["kp2d"], drawn["kp2d"])
+    assert torch.equal(StoryboardWindows([path], DatasetConfig(artist_share=1.0))[0]["kp2d"], drawn["kp2d"])
+
+
 @pytest.mark.parametrize("flag", ["batch_size", "lr", "minutes"])
 def test_train_command_refuses_a_non_positive_override(tmp_path, flag):
     with pytest.raises(TrainError, match="must be positive"):

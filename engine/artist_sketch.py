@@ -10,6 +10,8 @@ spans a few frames off, strokes short and wobbly (8-20 points), a box drawn as i
 the canvas's standing template (engine.poses) moved to the pelvis, with wrists, feet and head
 dragged to where they belong, elbows and knees left where the template had them; paths, object
 and contacts as in `hand_drawn`.
+The benchmark scores both (engine.bench.protocol); training can learn from them
+(DatasetConfig.artist_share, through `redrawn`).
 """
 from __future__ import annotations
 
@@ -18,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.polylines import resample_polyline
-from ..poses import standing_pose_2d
-from ..skeleton import JOINT_INDEX
-from ..storyboard import Keypose, Storyboard, StoryboardError
+from .geometry.polylines import resample_polyline
+from .poses import standing_pose_2d
+from .skeleton import JOINT_INDEX
+from .storyboard import Keypose, Storyboard, StoryboardError
 
 UNPLACED_CANDIDATES = ("spine1", "spine2", "spine3", "l_collar", "r_collar")
 DRAGGED = ("head", "l_wrist", "r_wrist", "l_foot", "r_foot", "l_ankle", "r_ankle")
@@ -52,6 +54,15 @@ def posed_with_tools(clean: Storyboard, seed: int, config: ArtistConfig = Artist
     template = standing_pose_2d(clean.camera)
     sb.keyposes = [_posed_figure(k, template, rng, config) for k in _shifted_keys(clean, rng, config)]
     return _valid(sb, clean)
+
+
+def redrawn(clean: Storyboard, seed: int, posed: bool = False) -> Storyboard:
+    """`clean` drawn by hand (or posed with the tools), or itself where a window's storyboard
+    cannot be redrawn into a valid one (training takes whatever windows the clips give)."""
+    try:
+        return (posed_with_tools if posed else hand_drawn)(clean, seed)
+    except (StoryboardError, ValueError):
+        return clean
 
 
 def _valid(sb: Storyboard, clean: Storyboard) -> Storyboard:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from engine.bench.animator import animator_metrics, bone_change, foot_float, pop, timing
-from engine.bench.artist import UNPLACED_CANDIDATES, hand_drawn, posed_with_tools
+from engine.artist_sketch import UNPLACED_CANDIDATES, hand_drawn, posed_with_tools
 from engine.skeleton import JOINT_INDEX, rest_pose
 from engine.sketchify import sketchify
 from engine.synth import synthesize
