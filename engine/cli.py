@@ -94,9 +94,19 @@ def cmd_bundle(args) -> int:
     import json
     import shlex
 
-    from .training.card import export_default
-    card = export_default(args.runs, args.output, args.data or [], args.real or [], args.config,
-                          command=args.command or "sketch2colab " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    from .models.bundle import BundleError
+    from .training.card import export_baselines, export_default
+    command = args.command or "sketch2colab " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    if args.baselines:
+        try:
+            card = export_baselines(args.runs, args.output or "resources/models/baselines.pt", args.data or [],
+                                    args.real or [], args.base, command)
+        except (BundleError, FileNotFoundError) as e:
+            raise UserError(str(e)) from None
+        print(json.dumps(card, indent=1))
+        return 0
+    card = export_default(args.runs, args.output or "resources/models/default.pt", args.data or [], args.real or [],
+                          args.config, command=command)
     print(json.dumps({k: card[k] for k in ("bundle", "size_mb", "load_s", "stages", "held_out")}, indent=1))
     return 0
 
@@ -194,7 +204,9 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("train", parents=[computes],
                        help="train a model stage (or all) on clip folders; torchrun for several GPUs")
     s.add_argument("stage", choices=["vqvae", "encoders", "teacher", "student1", "student2", "potential",
-                                     "ctmc", "surrogate", "preview", "all"])
+                                     "ctmc", "surrogate", "preview", "all", "sketch2anim", "controlnet1", "controlnet2"],
+                   help="a stage of the model, all of them in order, or a benchmark baseline's "
+                        "(sketch2anim: Sketch2Anim-INT; controlnet1, controlnet2: the parallel-ControlNets ablation)")
     s.add_argument("--config", choices=["default", "large"], default="default",
                    help="default: 2-core CPU sizes; large: GPU sizes and paper settings")
     s.add_argument("--data", nargs="+", metavar="DIR", help="folders of synthesized clip NPZs")
@@ -219,7 +231,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("bundle", help="collect trained stages into a model bundle with its model card")
     s.add_argument("--runs", default="runs", help="training output root (default runs/)")
-    s.add_argument("-o", "--output", default="resources/models/default.pt")
+    s.add_argument("-o", "--output", help="default: resources/models/default.pt (baselines.pt with --baselines)")
+    s.add_argument("--baselines", action="store_true",
+                   help="collect the benchmark's baselines (stages sketch2anim, controlnet1/2) instead, for --base")
+    s.add_argument("--base", metavar="BUNDLE.pt", help="with --baselines: the bundle they were trained with "
+                                                       "(default: the shipped one)")
     s.add_argument("--data", nargs="+", metavar="DIR", help="synthesized clip folders (their test split is measured)")
     s.add_argument("--real", nargs="+", metavar="DIR", help="imported capture folders (held-out takes are measured)")
     s.add_argument("--config", choices=["default", "large"], default="default")
@@ -261,6 +277,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", default="BENCHMARKS.md", metavar="BENCHMARKS.md")
     s.add_argument("--json", metavar="FILE", help="also write every figure as JSON")
     s.add_argument("--checkpoint", metavar="BUNDLE.pt", help="model bundle (default: the shipped one)")
+    s.add_argument("--baselines", metavar="BASELINES.pt",
+                   help="trained baselines for the bundle (default: resources/models/baselines.pt with the shipped one)")
     s.set_defaults(func=cmd_bench)
     return p
 
@@ -271,7 +289,7 @@ def cmd_bench(args) -> int:
         if path:
             check_output_path(path)
     try:
-        bench_command(args.quick, args.output, args.json, args.checkpoint)
+        bench_command(args.quick, args.output, args.json, args.checkpoint, args.baselines)
     except BenchError as e:
         raise UserError(str(e)) from None
     return 0

@@ -11,28 +11,37 @@ class BenchError(ValueError):
     """Bad input (a checkpoint or evaluator that cannot be read): one line for the user."""
 
 
-def command_line(quick: bool, output: str, json_path: str | None, checkpoint: str | None) -> str:
+def command_line(quick: bool, output: str, json_path: str | None, checkpoint: str | None,
+                 baselines: str | None = None) -> str:
     """The exact command that reproduces a report, for its header."""
     parts = ["sketch2colab bench"] + (["--quick"] if quick else []) + ["-o", output]
     parts += ["--json", json_path] if json_path else []
     parts += ["--checkpoint", checkpoint] if checkpoint else []
+    parts += ["--baselines", baselines] if baselines else []
     return " ".join(parts)
 
 
-def bench_command(quick: bool, output: str, json_path: str | None = None, checkpoint: str | None = None) -> dict:
+def bench_command(quick: bool, output: str, json_path: str | None = None, checkpoint: str | None = None,
+                  baselines: str | None = None) -> dict:
+    """`baselines`: the trained baselines' file (default: resources/models/baselines.pt where it
+    exists, for the shipped bundle); methods whose part is not there are left out, with a note."""
     from ..evaluation.evaluator import DEFAULT_PATH, EvaluatorError, load_evaluator
-    from ..models.bundle import BundleError, load_bundle, load_default
+    from ..models.bundle import BASELINES_PATH, BundleError, load_baselines, load_bundle, load_default
     from .report import write
     from .suite import BenchConfig, run_bench
     try:
         bundle = load_bundle(checkpoint) if checkpoint else load_default()
+        if baselines is None and checkpoint is None and BASELINES_PATH.is_file():
+            baselines = str(BASELINES_PATH)
+        if baselines is not None:
+            bundle = load_baselines(bundle, baselines)
         evaluator = load_evaluator(DEFAULT_PATH) if DEFAULT_PATH.is_file() else None
     except (BundleError, EvaluatorError) as e:
         raise BenchError(str(e)) from None
     markdown = Path(output)
     results = run_bench(bundle, BenchConfig.quick() if quick else BenchConfig.full(), evaluator,
                         markdown.parent / FIGURES_DIR)
-    write(results, command_line(quick, output, json_path, checkpoint), markdown,
+    write(results, command_line(quick, output, json_path, checkpoint, baselines), markdown,
           Path(json_path) if json_path else None)
     print(f"wrote {output}{' and ' + json_path if json_path else ''} in {results['elapsed_s']:.0f} s", file=sys.stderr)
     return results

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 
 from ..baselines.retrieval import RetrievalIndex, sample_retrieval
+from ..baselines.sketch2anim import sample_sketch2anim
 from ..clip import MotionClip
 from ..generate import run_generation
 from ..metrics import adherence, brier_score, contact_f1, diversity, expected_calibration_error
@@ -31,6 +33,11 @@ class Method:
     label: str                          # table row
     sampler: SamplerConfig | None       # None: the retrieval baseline
     untrained: bool = False             # run on freshly initialised weights (what finishing alone does)
+    needs: str | None = None            # a baseline part the bundle must hold (load_baselines), else skipped
+    generator: Callable | None = None   # (bundle, Request) -> the streaming generator; None: the sampler
+
+    def available(self, bundle) -> bool:
+        return self.needs is None or bundle.has_part(self.needs)
 
 
 OURS = Method("ours", "Ours", SamplerConfig())
@@ -54,14 +61,21 @@ ABLATIONS = (
     Method("wo_latent", "w/o latent grounding", SamplerConfig(use_latent=False)),
     Method("wo_temporal_bias", "w/o temporal bias", SamplerConfig(use_temporal_bias=False)),
     Method("trajectory_only", "trajectory-only", SamplerConfig(trajectory_only=True)),
+    # The storyboard through one ControlNet branch per condition type instead of the entity
+    # conditioning: a student of its own, trained as ours (scripts/train_baselines.sh).
+    Method("parallel_controlnets", "parallel ControlNets", SamplerConfig(student_part="controlnet_student"),
+           needs="controlnet_student"),
 )
+# The paper's strongest baseline (engine.baselines.sketch2anim), with our finishing.
+SKETCH2ANIM = Method("sketch2anim_int", "Sketch2Anim-INT (DDIM-50) + finishing", SamplerConfig(steps=50),
+                     needs="sketch2anim", generator=sample_sketch2anim)
 # The few-step preview student: as an artist sees it while dragging, and with the full guidance
 # and finishing (where quality holds, the way to a full generation at 20x the teacher).
 PREVIEW = Method("ours_preview", "Ours, preview", sampler_config(preview=True))
 FEW_STEP = Method("ours_few_step", "Ours, preview student + full guidance and finishing",
                   replace(sampler_config(), few_step=True, ctmc_every=1))
 ALL_METHODS = (OURS, OURS_30, PREVIEW, FEW_STEP, STEADY, TEACHER_DDPM, TEACHER_DDIM, TEACHER_DDPM_FINISHED, TEACHER_DDIM_FINISHED,
-               UNTRAINED_FINISHED, RETRIEV_ADAPT) + ABLATIONS
+               UNTRAINED_FINISHED, RETRIEV_ADAPT, SKETCH2ANIM) + ABLATIONS
 
 
 @functools.lru_cache(maxsize=1)
@@ -119,7 +133,8 @@ def generate(bundle, method: Method, storyboard: Storyboard, seed: int = 0, vari
         runs = [run_generation(sample_retrieval(index, storyboard, seed=seed + k), None) for k in range(variations)]
         return Generation([r.clips[0] for r in runs], sum(r.wall_time_s for r in runs), runs[0].first_step_s, 0)
     bundle = _untrained_bundle() if method.untrained else bundle
-    gen = sample(bundle, Request.build(storyboard, replace(method.sampler, seed=seed, variations=variations)))
+    gen = (method.generator or sample)(bundle, Request.build(storyboard, replace(method.sampler, seed=seed,
+                                                                                 variations=variations)))
     steps = []
     try:
         while True:
@@ -154,6 +169,8 @@ def run_protocol(bundle, protocol: Protocol, methods: tuple[Method, ...], config
     """Every method on every item of the protocol (DDPM on the first `ddpm_items` only)."""
     results = []
     for method in methods:
+        if not method.available(bundle):
+            continue
         items = protocol.items[:config.ddpm_items] if is_ddpm(method) else protocol.items
         if config.cfg is not None and method.sampler is not None:
             method = replace(method, sampler=replace(method.sampler, cfg=config.cfg))

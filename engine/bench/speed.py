@@ -151,6 +151,7 @@ def speed_table(bundle, methods: tuple[Method, ...], scaling_methods: tuple[Meth
     storyboards_by_length must hold 6.0 (the per-method scene) and every config.lengths_s;
     scaling_methods must be among methods (the entity comparison reuses their 6 s figure)."""
     base = storyboards_by_length[6.0]
+    methods = tuple(m for m in methods if m.available(bundle))
     generate(bundle, methods[0], base, index=index)          # warm-up, untimed
     out: dict = {"per_method": {}, "length": {}, "entities": {}}
     repeats = {m.key: config.ddpm_repeats if m.sampler is not None and m.sampler.method == "teacher-ddpm"

@@ -21,11 +21,12 @@ from ..baselines.retrieval import default_index
 from . import diagnostics, plots
 from .animator import ANIMATOR_TARGETS
 from .protocol import REPO_ROOT, ProtocolConfig, build_protocols
-from .runner import (ABLATIONS, ALL_METHODS, FEW_STEP, OURS, OURS_30, PREVIEW, RETRIEV_ADAPT, STEADY, TEACHER_DDIM,
-                     TEACHER_DDIM_FINISHED, TEACHER_DDPM, TEACHER_DDPM_FINISHED, RunnerConfig, generate, run_protocol)
+from .runner import (ABLATIONS, ALL_METHODS, FEW_STEP, OURS, OURS_30, PREVIEW, RETRIEV_ADAPT, SKETCH2ANIM, STEADY,
+                     TEACHER_DDIM, TEACHER_DDIM_FINISHED, TEACHER_DDPM, TEACHER_DDPM_FINISHED, RunnerConfig, generate,
+                     run_protocol)
 from .scores import by_key, by_method, paired
 from .speed import SpeedConfig, speed_table
-from .targets import check_targets
+from .targets import PAPER_TARGETS_VS_SKETCH2ANIM, check_targets, paper_ablation_drops, relative_change
 
 TEXT_NOTE = ("Sketch+text: text conditioning is not enabled in this project (storyboards' optional "
              "text is ignored by the model), so only the sketch-only setting is benchmarked.")
@@ -109,6 +110,10 @@ def run_bench(bundle, config: BenchConfig, evaluator=None, figures_dir: Path | N
     if not getattr(bundle, "trained", True):
         notes.append("The model bundle is UNTRAINED (freshly initialised weights): quality figures only show "
                      "that the benchmark runs; speed figures are representative of the architecture.")
+    missing = sorted({m.label for m in config.methods + config.speed_methods if not m.available(bundle)})
+    if missing:
+        notes.append(f"Not run: {', '.join(missing)}: no trained weights for this bundle (resources/models/baselines.pt, "
+                     "made by scripts/train_baselines.sh).")
     index = None
     if any(m.sampler is None for m in config.methods + config.noise_methods + config.speed_methods):
         index, library = default_index(config.protocol.data_dir, config.retrieval_clips)
@@ -158,6 +163,14 @@ def _targets(samples, by_method_figures) -> dict:
         else:
             ours, teacher = paired(samples, OURS.key, teacher_method.key)
         out[name] = {"n": teacher.get("n", 0), "checks": [c.__dict__ for c in check_targets(ours, teacher)]}
+    ours, baseline = by_method_figures.get(OURS.key, {}), by_method_figures.get(SKETCH2ANIM.key)
+    if baseline:
+        out["vs_sketch2anim"] = {"n": baseline.get("n", 0), "checks": [
+            c.__dict__ for c in check_targets(ours, baseline, PAPER_TARGETS_VS_SKETCH2ANIM)]}
+    out["ablations"] = {m.key: {metric: {"ours": relative_change(by_method_figures[m.key].get(metric), ours.get(metric)),
+                                         "paper": paper}
+                                for metric, paper in paper_ablation_drops().get(m.key, {}).items()}
+                        for m in ABLATIONS if m.key in by_method_figures and m.key in paper_ablation_drops()}
     return out
 
 

@@ -13,10 +13,10 @@ until trained weights land.
 """
 from __future__ import annotations
 
-import hashlib
 import dataclasses
+import hashlib
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import torch
@@ -24,9 +24,11 @@ from torch import nn
 
 from ..atomic import atomic_write
 from .alignment import LatentProjectionHead
+from .controlnet import ParallelControlNets
 from .ctmc import PhasePlanner, PhasePlannerConfig
 from .encoders import EncoderConfig, SketchConditioner
 from .potential import LatentPotential, PotentialConfig
+from .sketch2anim import Sketch2AnimINT
 from .student import RectifiedFlowStudent
 from .surrogate import JacobianSurrogate, SurrogateConfig
 from .teacher import DiffusionTeacher, VPSchedule
@@ -36,9 +38,14 @@ from .vqvae import EntityVQVAE, VQVAEConfig
 BUNDLE_FORMAT = "sketch2colab-bundle"
 BUNDLE_VERSION = 1
 DEFAULT_PATH = Path(__file__).resolve().parents[2] / "resources" / "models" / "default.pt"
+BASELINES_PATH = DEFAULT_PATH.with_name("baselines.pt")
 PARTS = ("vqvae", "conditioner", "latent_head", "teacher", "student", "planner", "potential", "surrogate", "preview")
 # Parts a trained bundle may lack (bundles made before them): `has_part` says whether one is trained.
 OPTIONAL_PARTS = ("preview",)
+# The benchmark's trained comparisons, kept apart from the product (resources/models/baselines.pt,
+# laid over the bundle they were trained with by `load_baselines`): the Sketch2Anim-INT baseline
+# and the "parallel ControlNets" ablation's student.
+BASELINE_PARTS = ("sketch2anim", "controlnet_student")
 
 
 class BundleError(ValueError):
@@ -82,19 +89,24 @@ class ModelConfig:
         return cls(**out)
 
 
-def build_parts(cfg: ModelConfig) -> dict[str, nn.Module]:
-    """Freshly initialised modules for every part, keyed by PARTS names."""
-    return {
-        "vqvae": EntityVQVAE(cfg.vqvae),
-        "conditioner": SketchConditioner(cfg.encoder),
-        "latent_head": LatentProjectionHead(cfg.encoder),
-        "teacher": DiffusionTeacher(TemporalUNet(cfg.teacher_unet), cfg.schedule),
-        "student": RectifiedFlowStudent(TemporalUNet(cfg.student_unet)),
-        "planner": PhasePlanner(cfg.planner),
-        "potential": LatentPotential(cfg.potential),
-        "surrogate": JacobianSurrogate(cfg.surrogate),
-        "preview": RectifiedFlowStudent(TemporalUNet(cfg.student_unet)),
-    }
+_BUILDERS = {
+    "vqvae": lambda cfg: EntityVQVAE(cfg.vqvae),
+    "conditioner": lambda cfg: SketchConditioner(cfg.encoder),
+    "latent_head": lambda cfg: LatentProjectionHead(cfg.encoder),
+    "teacher": lambda cfg: DiffusionTeacher(TemporalUNet(cfg.teacher_unet), cfg.schedule),
+    "student": lambda cfg: RectifiedFlowStudent(TemporalUNet(cfg.student_unet)),
+    "planner": lambda cfg: PhasePlanner(cfg.planner),
+    "potential": lambda cfg: LatentPotential(cfg.potential),
+    "surrogate": lambda cfg: JacobianSurrogate(cfg.surrogate),
+    "preview": lambda cfg: RectifiedFlowStudent(TemporalUNet(cfg.student_unet)),
+    "sketch2anim": lambda cfg: Sketch2AnimINT(cfg.teacher_unet, cfg.encoder, cfg.schedule),
+    "controlnet_student": lambda cfg: RectifiedFlowStudent(ParallelControlNets(cfg.student_unet)),
+}
+
+
+def build_parts(cfg: ModelConfig, names: tuple[str, ...] = PARTS) -> dict[str, nn.Module]:
+    """Freshly initialised modules for the parts `names` (PARTS and BASELINE_PARTS names)."""
+    return {name: _BUILDERS[name](cfg) for name in names}
 
 
 @dataclass
@@ -112,7 +124,7 @@ class ModelBundle:
 
     def has_part(self, name: str) -> bool:
         """Whether `name` holds trained weights (an optional part may be absent from the file)."""
-        return self.trained and name not in self.metadata.get("absent_parts", ())
+        return self.trained and name in self.parts and name not in self.metadata.get("absent_parts", ())
 
     def eval(self) -> "ModelBundle":
         for m in self.parts.values():
@@ -121,16 +133,21 @@ class ModelBundle:
 
     def save(self, path: str | Path) -> None:
         """Half-precision weights (buffers that count things stay as they are), atomically."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         absent = set(self.metadata.get("absent_parts", ()))
-        weights = {name: {k: v.half() if v.is_floating_point() else v for k, v in m.state_dict().items()}
-                   for name, m in self.parts.items() if name not in absent}
-        meta = {**{k: v for k, v in self.metadata.items() if k != "absent_parts"},   # found again on load
-                "trained": self.trained, "saved_at": time.strftime("%Y-%m-%d %H:%M:%S")}
-        with atomic_write(path) as f:
-            torch.save({"format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "config": self.config.to_dict(),
-                        "metadata": meta, "weights": weights, "weights_sha256": weights_digest(weights)}, f)
+        meta = {k: v for k, v in self.metadata.items() if k not in ("absent_parts", "weights_sha256")}  # found again on load
+        _write(path, self.config, {n: m for n, m in self.parts.items() if n not in absent and n not in BASELINE_PARTS},
+               {**meta, "trained": self.trained})
+
+
+def _write(path: str | Path, config: ModelConfig, parts: dict[str, nn.Module], metadata: dict) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    weights = {name: {k: v.half() if v.is_floating_point() else v for k, v in m.state_dict().items()}
+               for name, m in parts.items()}
+    meta = {**metadata, "saved_at": time.strftime("%Y-%m-%d %H:%M:%S")}
+    with atomic_write(path) as f:
+        torch.save({"format": BUNDLE_FORMAT, "version": BUNDLE_VERSION, "config": config.to_dict(),
+                    "metadata": meta, "weights": weights, "weights_sha256": weights_digest(weights)}, f)
 
 
 def weights_digest(weights: dict[str, dict[str, torch.Tensor]]) -> str:
@@ -152,9 +169,8 @@ def _first_line(error: Exception) -> str:
     return (str(error).splitlines() or [type(error).__name__])[0][:160]
 
 
-def load_bundle(path: str | Path) -> ModelBundle:
-    """Read a bundle file; any problem raises BundleError with a one-line message."""
-    path = Path(path)
+def _read(path: Path) -> tuple[ModelConfig, dict, dict, str]:
+    """A bundle-format file's (config, weights, metadata, weights digest), checked; BundleError otherwise."""
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except FileNotFoundError:
@@ -171,20 +187,19 @@ def load_bundle(path: str | Path) -> ModelBundle:
         raise BundleError(f"{path}: damaged model bundle (its weights, metadata or config are not tables)")
     expected = data.get("weights_sha256")
     try:
-        intact = expected is None or weights_digest(weights) == expected
+        digest = weights_digest(weights)
     except Exception as e:  # noqa: BLE001  any malformed table is damage
         raise BundleError(f"{path}: damaged model bundle ({_first_line(e)})") from None
-    if not intact:
+    if expected is not None and digest != expected:
         raise BundleError(f"{path}: the weights do not match their checksum: the file is damaged")
     try:
         cfg = ModelConfig.from_dict(data["config"])
-        parts = build_parts(cfg)
     except Exception as e:
         raise BundleError(f"{path}: bundle config does not fit these models ({_first_line(e)})") from None
-    absent = sorted(set(parts) - set(weights))
-    if meta.get("trained") and set(absent) - set(OPTIONAL_PARTS):
-        missing = ", ".join(sorted(set(absent) - set(OPTIONAL_PARTS)))
-        raise BundleError(f"{path}: marked trained but has no weights for {missing}")
+    return cfg, weights, meta, digest
+
+
+def _load_weights(path: Path, parts: dict[str, nn.Module], weights: dict) -> None:
     for name, state in weights.items():
         if name not in parts:
             raise BundleError(f"{path}: unknown part {name!r} in bundle")
@@ -196,8 +211,50 @@ def load_bundle(path: str | Path) -> ModelBundle:
         bad = [k for k, v in state.items() if v.is_floating_point() and not torch.isfinite(v).all()]
         if bad:
             raise BundleError(f"{path}: part {name!r} has non-finite weights in {bad[0]}")
-    meta = {**meta, "absent_parts": absent}
+
+
+def load_bundle(path: str | Path) -> ModelBundle:
+    """Read a bundle file; any problem raises BundleError with a one-line message."""
+    path = Path(path)
+    cfg, weights, meta, digest = _read(path)
+    try:
+        parts = build_parts(cfg)
+    except Exception as e:
+        raise BundleError(f"{path}: bundle config does not fit these models ({_first_line(e)})") from None
+    absent = sorted(set(parts) - set(weights))
+    if meta.get("trained") and set(absent) - set(OPTIONAL_PARTS):
+        missing = ", ".join(sorted(set(absent) - set(OPTIONAL_PARTS)))
+        raise BundleError(f"{path}: marked trained but has no weights for {missing}")
+    _load_weights(path, parts, weights)
+    meta = {**meta, "absent_parts": absent, "weights_sha256": digest}
     return ModelBundle(cfg, parts, trained=bool(meta.get("trained", False)), metadata=meta).eval()
+
+
+def save_baselines(path: str | Path, bundle: ModelBundle, parts: dict[str, nn.Module], metadata: dict) -> None:
+    """Write baseline parts (BASELINE_PARTS names) trained with `bundle`, tied to its weights."""
+    if not set(parts) <= set(BASELINE_PARTS):
+        raise ValueError(f"not baseline parts: {sorted(set(parts) - set(BASELINE_PARTS))}")
+    _write(path, bundle.config, parts, {**metadata, "base_weights_sha256": bundle.metadata.get("weights_sha256")})
+
+
+def load_baselines(bundle: ModelBundle, path: str | Path) -> ModelBundle:
+    """`bundle` with the baseline parts of `path` added (absent ones untrained, has_part False).
+    The file must have been trained with this very bundle (its weights' digest), since the
+    baselines share its VQ-VAE normalization, teacher, planner and latent head."""
+    path = Path(path)
+    cfg, weights, meta, _ = _read(path)
+    if meta.get("base_weights_sha256") != bundle.metadata.get("weights_sha256"):
+        raise BundleError(f"{path}: these baselines were trained with another model bundle; retrain them "
+                          "(sketch2colab train sketch2anim / controlnet1 / controlnet2) on this one")
+    if cfg.to_dict() != bundle.config.to_dict():
+        raise BundleError(f"{path}: the baselines' model config differs from the bundle's")
+    parts = build_parts(cfg, BASELINE_PARTS)
+    _load_weights(path, parts, weights)
+    for module in parts.values():
+        module.eval().requires_grad_(False)
+    absent = [*bundle.metadata.get("absent_parts", ()), *(n for n in BASELINE_PARTS if n not in weights)]
+    return replace(bundle, parts={**bundle.parts, **parts},
+                   metadata={**bundle.metadata, "absent_parts": absent, "baselines": meta})
 
 
 def untrained_bundle(cfg: ModelConfig | None = None, seed: int = 0) -> ModelBundle:

@@ -10,6 +10,8 @@ from dataclasses import dataclass, replace
 
 import torch
 
+CONDITION_TYPES = ("kf", "tr", "o")   # keyposes, joint trajectories, object boxes / paths
+
 
 @dataclass
 class Conditioning:
@@ -19,6 +21,8 @@ class Conditioning:
                                  # the along-path phase (s, s_dot, curvature)
     embed: torch.Tensor          # (B, d_e) pooled storyboard embedding (d_e = 256)
     drop: torch.Tensor | None = None  # (B,) bool: True = unconditional for that sample
+    by_type: torch.Tensor | None = None  # (B, T_lat, V, 3, d_model) the residual per condition type
+                                         # (CONDITION_TYPES; they sum to it): the ControlNet branches' input
 
     def dropped(self, mask: torch.Tensor) -> "Conditioning":
         """The same conditioning with samples in `mask` (B,) bool marked unconditional."""
@@ -32,4 +36,18 @@ class Conditioning:
         keep = (~self.drop).float()
         return replace(self, residual=self.residual * keep[:, None, None, None],
                        temporal_bias=self.temporal_bias * keep[:, None, None],
-                       embed=self.embed * keep[:, None], drop=None)
+                       embed=self.embed * keep[:, None], drop=None,
+                       by_type=None if self.by_type is None else self.by_type * keep[:, None, None, None, None])
+
+    def repeat(self, n: int, drop: torch.Tensor | None = None) -> "Conditioning":
+        """The batch repeated n times (sample i of copy c is sample i), with `drop` (n B,) or this one's."""
+        if drop is None and self.drop is not None:
+            drop = self.drop.repeat(n)
+        return Conditioning(residual=self.residual.repeat(n, 1, 1, 1), temporal_bias=self.temporal_bias.repeat(n, 1, 1),
+                            embed=self.embed.repeat(n, 1), drop=drop,
+                            by_type=None if self.by_type is None else self.by_type.repeat(n, 1, 1, 1, 1))
+
+    def from_step(self, start: int) -> "Conditioning":
+        """The window of latent steps start.. (a sequence generated in overlapping windows)."""
+        return replace(self, residual=self.residual[:, start:], temporal_bias=self.temporal_bias[:, start:, start:],
+                       by_type=None if self.by_type is None else self.by_type[:, start:])

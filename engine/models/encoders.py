@@ -36,9 +36,8 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..skeleton import NUM_JOINTS, rest_pose
-from .conditioning import Conditioning
+from .conditioning import CONDITION_TYPES, Conditioning
 
-CONDITION_TYPES = ("kf", "tr", "o")
 TIME_FREQUENCIES = 4  # sinusoidal features of normalized time: 2 * 4 numbers
 
 
@@ -443,20 +442,25 @@ class SketchConditioner(nn.Module):
 
     def encode(self, controls: dict, t_lat: int, v: int = 3) -> SketchEncoding:
         lifted = self.lift(controls)
-        h = self.cfg.num_humans
         tr_res, bias = self.trajectory(lifted.trajectories, controls, t_lat)
-        human = tr_res + self.keyframes(lifted.keyposes, controls, t_lat)      # (B, T_lat, H, d)
+        kf_res = self.keyframes(lifted.keyposes, controls, t_lat)              # (B, T_lat, H, d)
         obj = self.objects(controls, t_lat)                                    # (B, T_lat, O, d)
-        b = human.shape[0]
-        slots = [human, obj[:, :, :max(v - h, 0)]]
-        spare = v - h - slots[1].shape[2]
-        if spare > 0:
-            slots.append(human.new_zeros(b, t_lat, spare, self.cfg.d_model))
-        residual = torch.cat(slots, 2)
+        none_h, none_o = torch.zeros_like(tr_res), torch.zeros_like(obj)
+        residual = self._slots(tr_res + kf_res, obj, v)
+        by_type = torch.stack([self._slots(kf_res, none_o, v), self._slots(tr_res, none_o, v),
+                               self._slots(none_h, obj, v)], 3)
         s2d = self.embed_2d(controls)
         embed = self.pool(torch.cat([s2d[y] for y in CONDITION_TYPES], -1))
-        return SketchEncoding(Conditioning(residual=residual, temporal_bias=bias, embed=embed),
+        return SketchEncoding(Conditioning(residual=residual, temporal_bias=bias, embed=embed, by_type=by_type),
                               s2d, condition_presence(controls), lifted)
+
+    def _slots(self, human: torch.Tensor, obj: torch.Tensor, v: int) -> torch.Tensor:
+        """Per-entity features (B, T_lat, V, d): the humans', the objects' up to V, zero slots after."""
+        slots = [human, obj[:, :, :max(v - self.cfg.num_humans, 0)]]
+        spare = v - self.cfg.num_humans - slots[1].shape[2]
+        if spare > 0:
+            slots.append(human.new_zeros(human.shape[0], human.shape[1], spare, self.cfg.d_model))
+        return torch.cat(slots, 2)
 
     def forward(self, controls: dict[str, torch.Tensor], T_lat: int, V: int = 3) -> Conditioning:
         return self.encode(controls, T_lat, V).conditioning

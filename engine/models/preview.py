@@ -58,11 +58,6 @@ def reference_path(field: GuidedField, lowres: LowRes, z1: torch.Tensor, cond: C
     return states, positions[:-1]
 
 
-def _repeat(cond: Conditioning, n: int) -> Conditioning:
-    return Conditioning(residual=cond.residual.repeat(n, 1, 1, 1), temporal_bias=cond.temporal_bias.repeat(n, 1, 1),
-                        embed=cond.embed.repeat(n, 1))
-
-
 def preview_loss(preview: RectifiedFlowStudent, states: list[torch.Tensor], positions: list[torch.Tensor | None],
                  cond: Conditioning, occupancy: torch.Tensor | None) -> dict[str, torch.Tensor]:
     """Mean squared error of the preview's jump velocity against the reference's, per jump of each
@@ -76,7 +71,7 @@ def preview_loss(preview: RectifiedFlowStudent, states: list[torch.Tensor], posi
         z = torch.cat([states[k] for k in ks])
         t = torch.tensor([times[k] for k in ks], dtype=z.dtype, device=z.device).repeat_interleave(b)
         occ = None if occupancy is None else occupancy.repeat(len(ks), *([1] * (occupancy.dim() - 1)))
-        v = preview.velocity(z, t, _repeat(cond, len(ks)), pos, occ)
+        v = preview.velocity(z, t, cond.repeat(len(ks)), pos, occ)
         return F.mse_loss(v, torch.cat([target[k] for k in ks]), reduction="none").flatten(1).mean(1)
 
     errors = [jumps([0], None)]

@@ -155,10 +155,7 @@ def consistency_loss(student: RectifiedFlowStudent, sample: FlowSample, entity_p
     of the whole sequence. v_full (B, T, V, d) is the full-sequence velocity (target detached)."""
     t_lat = sample.z_t.shape[1]
     start = max(t_lat - (t_lat + overlap) // 2, 1)
-    cond = sample.cond
-    if cond is not None:
-        cond = Conditioning(residual=cond.residual[:, start:], temporal_bias=cond.temporal_bias[:, start:, start:],
-                            embed=cond.embed, drop=cond.drop)
+    cond = None if sample.cond is None else sample.cond.from_step(start)
     pos = None if entity_pos is None else entity_pos[:, start:]
     occ = occupancy
     if occ is not None and occ.dim() == 3:

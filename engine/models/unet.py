@@ -36,6 +36,7 @@ class UNetConfig:
     cond_dim: int = 128                           # Conditioning.residual feature size d_model
     cond_embed_dim: int = 256                     # Conditioning.embed size d_e
     n_heads_out: int = 1                          # output fields: 1 teacher, S = 3 student
+    down_only: bool = False                       # no up path: a ControlNet branch (models/controlnet.py)
 
     @classmethod
     def default(cls, **kw) -> "UNetConfig":
@@ -164,19 +165,57 @@ class TemporalUNet(nn.Module):
             if i > 0:
                 self.upsample.append(TemporalConv(ch[i], ch[i - 1]))
                 c_prev = ch[i - 1]
-        self.out_norm = nn.LayerNorm(ch[0])
-        self.output = nn.Linear(ch[0], cfg.latent_dim * cfg.n_heads_out)
-        nn.init.zeros_(self.output.weight)
-        nn.init.zeros_(self.output.bias)
+        if cfg.down_only:
+            self.up_blocks, self.upsample = nn.ModuleList(), nn.ModuleList()
+        else:
+            self.out_norm = nn.LayerNorm(ch[0])
+            self.output = nn.Linear(ch[0], cfg.latent_dim * cfg.n_heads_out)
+            nn.init.zeros_(self.output.weight)
+            nn.init.zeros_(self.output.bias)
         blocks = [*self.down_blocks, self.mid_block, *self.up_blocks]
         self.film_sizes = [blk.film_size for blk in blocks]
         self.film = nn.Linear(e, sum(self.film_sizes))  # every block's FiLM in one matmul
 
     def forward(self, z: torch.Tensor, time: torch.Tensor, cond: Conditioning | None = None,
-                entity_pos: torch.Tensor | None = None) -> torch.Tensor:
+                entity_pos: torch.Tensor | None = None, control: list[torch.Tensor] | None = None) -> torch.Tensor:
         """z (B, T_lat, V, d); time (B,) or scalar in [0, 1]; cond: Conditioning or None (no
-        storyboard, the same as all samples dropped); entity_pos (B, T_lat, V, 3) metres or None (no distance bias).
+        storyboard, the same as all samples dropped); entity_pos (B, T_lat, V, 3) metres or None (no distance bias);
+        control: ControlNet additions to each level's skip and to the bottleneck (see `levels`) or None.
         Returns (B, n_heads_out, T_lat, V, d)."""
+        b, t, v, d = z.shape
+        ctx = self._context(z, time, cond, entity_pos)
+        skips, x = self._down(ctx, self._embed_input(z))
+        if control is not None:
+            skips = [s + c for s, c in zip(skips, control)]
+            x = x + control[-1]
+        k = len(self.down_blocks) + 1
+        for j, block in enumerate(self.up_blocks):
+            x = block(torch.cat([x, skips.pop()], -1), ctx.film[k])
+            k += 1
+            if j < len(self.upsample):
+                x = self.upsample[j](x.repeat_interleave(2, 1)[:, :skips[-1].shape[1]])
+        out = self.output(F.silu(self.out_norm(x)))  # (B*V, T, S*d)
+        return out.reshape(b, v, t, self.cfg.n_heads_out, d).permute(0, 3, 2, 1, 4)
+
+    def levels(self, z: torch.Tensor, time: torch.Tensor, entity_pos: torch.Tensor | None = None,
+               hint: torch.Tensor | None = None) -> list[torch.Tensor]:
+        """The down path's features without storyboard conditioning: each level's skip
+        (B*V, T_l, C_l), then the bottleneck's; `hint` (B*V, T_lat, C_0) is added to the input
+        features (a ControlNet branch's control)."""
+        ctx = self._context(z, time, None, entity_pos)
+        x = self._embed_input(z)
+        skips, x = self._down(ctx, x if hint is None else x + hint)
+        return [*skips, x]
+
+    def _embed_input(self, z: torch.Tensor) -> torch.Tensor:
+        """(B, T, V, d) -> (B*V, T, C_0) with the entity embedding."""
+        b, t, v, d = z.shape
+        x = self.input(z.transpose(1, 2).reshape(b * v, t, d))
+        return (x.reshape(b, v, t, -1) + self.entity_embed).reshape(b * v, t, -1)
+
+    def _context(self, z, time, cond, entity_pos) -> "_Context":
+        """What every block reads: FiLM per block, temporal bias and entity distances per
+        attention level, the storyboard residual per level."""
         cfg = self.cfg
         b, t, v, d = z.shape
         time = torch.as_tensor(time, dtype=z.dtype, device=z.device).expand(b)
@@ -187,7 +226,6 @@ class TemporalUNet(nn.Module):
         cond = cond.masked()
         emb = emb + self.cond_embed(cond.embed)
         film = self.film(F.silu(emb)).repeat_interleave(v, 0).split(self.film_sizes, 1)
-
         lengths = [t]
         for _ in range(len(cfg.channels) - 1):
             lengths.append((lengths[-1] + 1) // 2)
@@ -198,30 +236,23 @@ class TemporalUNet(nn.Module):
             dist = torch.cdist(entity_pos, entity_pos)  # (B, T, V, V)
             distance = {i: _pool_distance(dist, lengths[i]) for i in attn_levels}
         r = self.cond_residual(cond.residual).transpose(1, 2).reshape(b * v, t, -1)
-        residuals = r.split(list(cfg.channels), -1)  # per level (B*V, T, C_l)
+        return _Context(v, film, lengths, tbias, distance, r.split(list(cfg.channels), -1))
 
-        x = self.input(z.transpose(1, 2).reshape(b * v, t, d))
-        x = (x.reshape(b, v, t, -1) + self.entity_embed).reshape(b * v, t, -1)
-        skips, k = [], 0
+    def _down(self, ctx: "_Context", x: torch.Tensor) -> tuple[list[torch.Tensor], torch.Tensor]:
+        """Input features (B*V, T, C_0) -> (each level's skip, the bottleneck's output)."""
+        skips = []
         for i, block in enumerate(self.down_blocks):
-            x = block(x, film[k])
-            k += 1
-            x = x + _pool_time(residuals[i], lengths[i])
+            x = block(x, ctx.film[i])
+            x = x + _pool_time(ctx.residuals[i], ctx.lengths[i])
             if str(i) in self.down_attn:
-                x = self.down_attn[str(i)](x, v, tbias[i], distance.get(i))
+                x = self.down_attn[str(i)](x, ctx.entities, ctx.tbias[i], ctx.distance.get(i))
             skips.append(x)
             if i < len(self.downsample):
                 x = self.downsample[i](x)
-        last = len(lengths) - 1
-        x = self.mid_attn(self.mid_block(x, film[k]), v, tbias[last], distance.get(last))
-        k += 1
-        for j, block in enumerate(self.up_blocks):
-            x = block(torch.cat([x, skips.pop()], -1), film[k])
-            k += 1
-            if j < len(self.upsample):
-                x = self.upsample[j](x.repeat_interleave(2, 1)[:, :skips[-1].shape[1]])
-        out = self.output(F.silu(self.out_norm(x)))  # (B*V, T, S*d)
-        return out.reshape(b, v, t, cfg.n_heads_out, d).permute(0, 3, 2, 1, 4)
+        last = len(ctx.lengths) - 1
+        x = self.mid_attn(self.mid_block(x, ctx.film[len(self.down_blocks)]), ctx.entities, ctx.tbias[last],
+                          ctx.distance.get(last))
+        return skips, x
 
     def _temporal_bias(self, cond, length, b, like) -> torch.Tensor:
         """(B, T_l, T_l): window mask (-inf outside +-window) + the resampled storyboard bias."""
@@ -232,6 +263,16 @@ class TemporalUNet(nn.Module):
         if bias.shape[-1] != length:
             bias = F.adaptive_avg_pool2d(bias[:, None], (length, length))[:, 0]
         return bias + mask
+
+
+@dataclass
+class _Context:
+    entities: int
+    film: tuple[torch.Tensor, ...]       # per block (B*V, 2 C)
+    lengths: list[int]                   # latent steps per level
+    tbias: dict[int, torch.Tensor]       # per attention level (B, T_l, T_l)
+    distance: dict[int, torch.Tensor]    # per attention level (B, T_l, V, V); empty without positions
+    residuals: tuple[torch.Tensor, ...]  # per level (B*V, T, C_l) storyboard residual
 
 
 def _pool_time(x: torch.Tensor, length: int) -> torch.Tensor:

@@ -202,6 +202,26 @@ class EntityVQVAE(nn.Module):
         obj = torch.cat([pose, (anchors - pose[..., None, :3]).flatten(-2)], -1)
         return human, obj
 
+    def normalized_features(self, batch: dict) -> tuple[torch.Tensor, torch.Tensor]:
+        """features() normalized per channel; an absent object's are zero."""
+        human, obj = self.features(batch)
+        n = self.normalizer
+        present = batch["obj_present"].reshape(-1, 1, 1, 1).to(obj.dtype)
+        return (human - n.human_mean) / n.human_std, (obj - n.object_mean) / n.object_std * present
+
+    def motion_from_features(self, human: torch.Tensor, obj: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Normalized frame features, human (B, N, 2, 201) and object (B, N, 1, 19), -> the motion
+        dict decode() returns (the inverse of normalized_features, quaternions made unit)."""
+        n = self.normalizer
+        human, obj = human * n.human_std + n.human_mean, obj * n.object_std + n.object_mean
+        root = human[..., :3]
+        local = human[..., 3:3 + NUM_JOINTS * 3].unflatten(-1, (NUM_JOINTS, 3))
+        rot6d = human[..., 3 + NUM_JOINTS * 3:].unflatten(-1, (NUM_JOINTS, 6))
+        quat = obj[..., 3:7] / obj[..., 3:7].norm(dim=-1, keepdim=True).clamp_min(1e-6)
+        anchors = obj[..., None, :3] + obj[..., 7:].unflatten(-1, (self.cfg.anchors_per_object, 3))
+        return {"joints": root[..., None, :] + local, "rot6d": rot6d,
+                "obj_pose": torch.cat([obj[..., :3], quat], -1), "obj_anchors": anchors}
+
     def fit_normalizer(self, batch: dict) -> None:
         """Set the per-channel mean / std from a (large) batch of training items."""
         human, obj = self.features(batch)
@@ -210,11 +230,7 @@ class EntityVQVAE(nn.Module):
     # -- encoder ----------------------------------------------------------------------------
     def encode_continuous(self, batch: dict) -> torch.Tensor:
         """Motion batch -> pre-quantization latent e (B, T_lat, V, d)."""
-        human, obj = self.features(batch)
-        n = self.normalizer
-        human = (human - n.human_mean) / n.human_std
-        present = batch["obj_present"].reshape(-1, 1, 1, 1).to(obj.dtype)
-        obj = (obj - n.object_mean) / n.object_std * present
+        human, obj = self.normalized_features(batch)
         x = torch.cat([self.human_in(human), self.object_in(obj)], 2) + self.entity_embed  # (B, N, V, C)
         b, frames, v, c = x.shape
         if frames % self.cfg.time_factor:
@@ -237,17 +253,7 @@ class EntityVQVAE(nn.Module):
         b, t, v, d = z.shape
         h = self.decoder((z * self.latent_std).permute(0, 2, 3, 1).reshape(b * v, d, t))
         h = h.reshape(b, v, h.shape[1], -1).permute(0, 3, 1, 2) + self.entity_embed_dec  # (B, N, V, C)
-        n = self.normalizer
-        human = self.human_out(h[:, :, :NUM_HUMANS]) * n.human_std + n.human_mean
-        obj = self.object_out(h[:, :, NUM_HUMANS:]) * n.object_std + n.object_mean
-        root = human[..., :3]
-        local = human[..., 3:3 + NUM_JOINTS * 3].unflatten(-1, (NUM_JOINTS, 3))
-        joints = root[..., None, :] + local
-        rot6d = human[..., 3 + NUM_JOINTS * 3:].unflatten(-1, (NUM_JOINTS, 6))
-        quat = obj[..., 3:7] / obj[..., 3:7].norm(dim=-1, keepdim=True).clamp_min(1e-6)
-        anchors = obj[..., None, :3] + obj[..., 7:].unflatten(-1, (self.cfg.anchors_per_object, 3))
-        return {"joints": joints, "rot6d": rot6d, "obj_pose": torch.cat([obj[..., :3], quat], -1),
-                "obj_anchors": anchors}
+        return self.motion_from_features(self.human_out(h[:, :, :NUM_HUMANS]), self.object_out(h[:, :, NUM_HUMANS:]))
 
     def decode_lowres(self, z: torch.Tensor) -> torch.Tensor:
         """z (B, T_lat, V, d) -> entity root positions (B, T_lat, V, 3) in metres (pelvis for

@@ -23,10 +23,7 @@ class ClassifierFreeGuidance:
         b = z.shape[0]
         time = torch.as_tensor(time, dtype=z.dtype, device=z.device).expand(b)
         drop = torch.zeros(b, dtype=torch.bool, device=z.device) if cond.drop is None else cond.drop
-        both = Conditioning(residual=cond.residual.repeat(2, 1, 1, 1),
-                            temporal_bias=cond.temporal_bias.repeat(2, 1, 1),
-                            embed=cond.embed.repeat(2, 1),
-                            drop=torch.cat([drop, torch.ones_like(drop)]))
+        both = cond.repeat(2, drop=torch.cat([drop, torch.ones_like(drop)]))
         pos = None if entity_pos is None else entity_pos.repeat(2, 1, 1, 1)
         out = self.field(z.repeat(2, 1, 1, 1), time.repeat(2), both, pos)
         cond_out, uncond_out = out[:b], out[b:]

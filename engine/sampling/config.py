@@ -30,6 +30,8 @@ class SamplerConfig:
     seed: int = 0
     cfg: float = 1.6                # classifier-free guidance weight
     method: str = "student"
+    student_part: str = "student"   # the bundle part the student method integrates
+                                    # ("controlnet_student": the parallel-ControlNets ablation)
     variations: int = 1             # K samples drawn at once (one batch)
     use_energy: bool = True         # raw-space energy guidance (ablation "w/o Energy")
     use_ctmc: bool = True           # CTMC mixing of sub-fields and contact gating ("w/o CTMC")

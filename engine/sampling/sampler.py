@@ -69,6 +69,8 @@ def sample(bundle: Bundle, request: Request) -> Generator[StepEvent, None, Gener
     config = request.config
     if config.few_step and bundle.trained and not bundle.has_part("preview"):
         raise SamplerError("this model bundle has no preview student (train it: sketch2colab train preview)")
+    if config.student_part != "student" and not bundle.has_part(config.student_part):
+        raise SamplerError(f"this model bundle has no trained {config.student_part!r} (see scripts/train_baselines.sh)")
     threads = ThreadBudget(config.threads, config.reserve_cores)
     threads.adjust()
     run = _Run(bundle, request)
@@ -150,7 +152,7 @@ class _Run:
         student is CFG-guided (cond and uncond as one batch, so the occupancy is repeated to
         match); the preview student has the guidance distilled in (one conditional pass)."""
         occupancy = self.occupancy
-        network = self.bundle.preview if self.cfg.few_step else self.bundle.student
+        network = self.bundle.preview if self.cfg.few_step else getattr(self.bundle, self.cfg.student_part)
 
         def student(z, time, cond, pos):
             occ = None if occupancy is None else occupancy.repeat(z.shape[0] // occupancy.shape[0], 1, 1)

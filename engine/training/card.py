@@ -1,5 +1,6 @@
 """Ship a trained bundle: collect the stages under runs/, measure it on held-out clips, and write
-the weights with their model card (resources/models/default.pt + default.md).
+the weights with their model card (resources/models/default.pt + default.md); and the
+benchmark's trained baselines beside it (baselines.pt + baselines.md, `export_baselines`).
 
 The held-out figures are the model issue's acceptance checks: VQ-VAE reconstruction (mean joint
 error in metres), CTMC phase accuracy and contact timing against the synthesizer's labels, and
@@ -16,10 +17,11 @@ import torch
 
 from ..atomic import write_text
 from ..dataset import DatasetConfig, StoryboardWindows, split_files
-from ..models.bundle import ModelBundle, load_bundle
+from ..models.bundle import DEFAULT_PATH, ModelBundle, build_parts, load_baselines, load_bundle, save_baselines
 from ..models.ctmc import contact_timing_error, phase_accuracy
 from ..models.surrogate import gradient_cosine, random_cotangents
-from .config import CONFIGS, STAGES
+from . import checkpoint
+from .config import BASELINE_STAGE_PARTS, BASELINE_STAGES, CONFIGS, STAGES
 from .export import bundle_from_runs
 from .stages import sample_batch
 
@@ -76,6 +78,55 @@ def export_default(runs: str | Path, output: str | Path, data: list[str], real: 
             "metrics": bundle.metadata.get("metrics", {}), "held_out": figures,
             "held_out_files": {k: [p.name for p in v] for k, v in held.items()}}
     write_text(output.with_suffix(".md"), _card_markdown(card, bundle.metadata, command))
+    return card
+
+
+def export_baselines(runs: str | Path, output: str | Path, data: list[str], real: list[str],
+                     base: str | Path | None = None, command: str = "") -> dict:
+    """The baseline stages' final weights under runs/ (later stages win), tied to the bundle they
+    were trained with (`base`, default the shipped one), and their model card."""
+    bundle = load_bundle(base or DEFAULT_PATH)
+    parts, done, metrics = {}, [], {}
+    for stage in BASELINE_STAGES:
+        path = Path(runs) / stage / "final.pt"
+        if not path.exists():
+            continue
+        final = checkpoint.load(path)
+        for name in BASELINE_STAGE_PARTS[stage]:
+            parts[name] = build_parts(bundle.config, (name,))[name]
+            parts[name].load_state_dict(final["parts"][name])
+        done.append(stage)
+        metrics[stage] = final.get("metrics", {})
+    if not parts:
+        raise FileNotFoundError(f"{runs}: no baseline stage trained ({', '.join(BASELINE_STAGES)})")
+    output = Path(output)
+    meta = {"stages": done, "metrics": metrics, "commit": _git("rev-parse", "HEAD"),
+            "dirty": bool(_git("status", "--porcelain")), "training_data": {"synthesized": data, "real": real}}
+    save_baselines(output, bundle, parts, meta)
+    load_baselines(bundle, output)      # it reads back, tied to its bundle
+    card = {"file": output.name, "size_mb": round(output.stat().st_size / 1e6, 2), "stages": done,
+            "parts": sorted(parts), "metrics": metrics}
+    rows = [f"| {stage} | {m.get('steps', '?')} | {m.get('wall_time_s', '?')} | "
+            + ", ".join(f"{k} {v:.4g}" for k, v in m.items() if k not in ("stage", "steps", "wall_time_s")
+                        and isinstance(v, (int, float))) + " |" for stage, m in metrics.items()]
+    write_text(output.with_suffix(".md"), "\n".join([
+        "# Model card: the benchmark's trained baselines",
+        "",
+        f"`{output.name}`: {card['size_mb']} MB (half precision): {', '.join(card['parts'])}. Not part of the product: "
+        "`sketch2colab bench` lays them over the bundle they were trained with (`load_baselines` checks its "
+        f"weights' SHA-256, `{bundle.metadata.get('weights_sha256')}`).",
+        "",
+        "- sketch2anim: Sketch2Anim-INT (engine/models/sketch2anim.py, engine/baselines/sketch2anim.py).",
+        "- controlnet_student: the parallel-ControlNets ablation's student (engine/models/controlnet.py), "
+        "trained with ours' objectives and budgets (controlnet1 = student1's, controlnet2 = student2's).",
+        "",
+        "```", command or "(command not recorded)", "```", "",
+        f"- commit: `{meta['commit']}`{' (with uncommitted changes)' if meta['dirty'] else ''}; seed 0; "
+        f"data: synthesized {data}, real {real} (train splits only)",
+        "- real capture credit: the data used in this project was obtained from mocap.cs.cmu.edu. "
+        "The database was created with funding from NSF EIA-0196217.",
+        "",
+        "| stage | steps | wall time (s) | final losses |", "|---|---|---|---|", *rows, ""]))
     return card
 
 

@@ -12,6 +12,12 @@ STAGE_PARTS = {"vqvae": ("vqvae",), "encoders": ("conditioner",), "teacher": ("t
                "surrogate": ("surrogate",), "student2": ("student", "planner", "latent_head"),
                "preview": ("preview",)}
 OPTIONAL_STAGES = {"preview": "preview"}     # stage -> the optional bundle part it trains
+# The benchmark's trained comparisons (never part of `train all` or the product's bundle): the
+# Sketch2Anim-INT baseline (budget: the teacher's), and the parallel-ControlNets ablation's student
+# trained as ours is (controlnet1 = student1's objective and budget, controlnet2 = student2's).
+BASELINE_STAGES = ("sketch2anim", "controlnet1", "controlnet2")
+BASELINE_STAGE_PARTS = {"sketch2anim": ("sketch2anim",), "controlnet1": ("controlnet_student",),
+                        "controlnet2": ("controlnet_student",)}
 
 
 @dataclass
@@ -33,7 +39,8 @@ class TrainConfig:
     surrogate_init_latents: int = 8  # data latents whose decoder Jacobians initialise B_rho
     model: ModelConfig = field(default_factory=ModelConfig.default)
     stage_lr: dict = field(default_factory=lambda: {"vqvae": 5e-4, "student1": 1e-4, "student2": 1e-4,
-                                                    "surrogate": 1e-5, "preview": 5e-5})
+                                                    "surrogate": 1e-5, "preview": 5e-5,
+                                                    "controlnet1": 1e-4, "controlnet2": 1e-4})
     stage_steps: dict = field(default_factory=dict)   # per-stage overrides of `steps` (stage "all")
 
     def lr_for(self, stage: str) -> float:

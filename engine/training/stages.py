@@ -12,6 +12,11 @@ Order and dependencies:
   student2   (all above)       -> student + planner + latent head: the full objective (phase 2)
   preview    (vqvae, teacher, student2) -> the few-step preview student, distilled from the
                                student's guided ODE (models/preview.py); optional in a bundle
+Baselines (config.BASELINE_STAGES, for the benchmark):
+  sketch2anim (vqvae, encoders?) -> Sketch2AnimINT: epsilon loss in raw motion space
+  controlnet1 (vqvae, teacher)   -> the ControlNet ablation's student: student1's objective
+  controlnet2 (all but preview, controlnet1) -> the same: student2's objective, with our planner
+                               and latent head frozen (they do not read the storyboard's route)
 """
 from __future__ import annotations
 
@@ -24,12 +29,12 @@ from torch import nn
 from torch.utils.data import Dataset
 
 from ..models import alignment, ctmc, encoders, potential, preview, student, surrogate
-from ..models.bundle import build_parts
+from ..models.bundle import BASELINE_PARTS, PARTS, build_parts
 from ..models.vqvae import mean_joint_error
 from ..sampling.cfg import ClassifierFreeGuidance
 from ..sampling.config import SamplerConfig
 from . import checkpoint
-from .config import STAGES, TrainConfig
+from .config import BASELINE_STAGES, STAGES, TrainConfig
 
 LossFn = Callable[[dict, torch.Generator, int], dict]
 PREVIEW_CFG = SamplerConfig().cfg   # the guidance weight the preview bakes in: the sampler's default
@@ -85,10 +90,10 @@ def _latent(vqvae, batch: dict, generator: torch.Generator):
 
 
 def build_stage(stage: str, cfg: TrainConfig, runs: Path, dataset: Dataset) -> StageTask:
-    if stage not in STAGES:
-        raise ValueError(f"unknown stage {stage!r}; expected one of {', '.join(STAGES)} or all")
+    if stage not in STAGES + BASELINE_STAGES:
+        raise ValueError(f"unknown stage {stage!r}; expected one of {', '.join(STAGES + BASELINE_STAGES)} or all")
     torch.manual_seed(cfg.seed)  # the same initial weights on every rank and every run
-    parts = build_parts(cfg.model)
+    parts = build_parts(cfg.model, PARTS + (BASELINE_PARTS if stage in BASELINE_STAGES else ()))
     return _BUILDERS[stage](parts, cfg, Path(runs), dataset)
 
 
@@ -123,8 +128,7 @@ def _encoders(parts, cfg, runs, dataset) -> StageTask:
 def _teacher(parts, cfg, runs, dataset) -> StageTask:
     _frozen(parts, runs, "vqvae", ("vqvae",), "teacher")
     vq, teacher, cond = parts["vqvae"], parts["teacher"], parts["conditioner"]
-    if (runs / "encoders" / "final.pt").exists():  # aligned encoders are a better start; optional
-        cond.load_state_dict(load_final(runs, "encoders")["conditioner"])
+    _aligned_start(cond, runs)
 
     def loss(batch, g, step):
         z0, pos = _latent(vq, batch, g)
@@ -134,16 +138,29 @@ def _teacher(parts, cfg, runs, dataset) -> StageTask:
                      frozen={"vqvae": vq})
 
 
+def _aligned_start(conditioner: nn.Module, runs: Path) -> None:
+    if (runs / "encoders" / "final.pt").exists():  # aligned encoders are a better start; optional
+        conditioner.load_state_dict(load_final(runs, "encoders")["conditioner"])
+
+
+def _sketch2anim(parts, cfg, runs, dataset) -> StageTask:
+    _frozen(parts, runs, "vqvae", ("vqvae",), "sketch2anim")
+    vq, model = parts["vqvae"], parts["sketch2anim"]
+    _aligned_start(model.conditioner, runs)
+    return StageTask("sketch2anim", nn.ModuleDict({"sketch2anim": model}),
+                     lambda batch, g, step: model.loss(vq, batch, g), frozen={"vqvae": vq})
+
+
 def _occupancy_labels(batch: dict) -> torch.Tensor:
     """Phase labels (B, N, 3) where a clip has them, uniform elsewhere."""
     has = batch["has_labels"].reshape(-1, 1, 1) > 0.5
     return torch.where(has, batch["phase"], torch.full_like(batch["phase"], 1.0 / student.NUM_PHASES))
 
 
-def _student1(parts, cfg, runs, dataset) -> StageTask:
-    _frozen(parts, runs, "vqvae", ("vqvae",), "student1")
-    _frozen(parts, runs, "teacher", ("teacher", "conditioner"), "student1")
-    vq, teacher, cond, stu = parts["vqvae"], parts["teacher"], parts["conditioner"], parts["student"]
+def _student1(parts, cfg, runs, dataset, name: str = "student1", part: str = "student") -> StageTask:
+    _frozen(parts, runs, "vqvae", ("vqvae",), name)
+    _frozen(parts, runs, "teacher", ("teacher", "conditioner"), name)
+    vq, teacher, cond, stu = parts["vqvae"], parts["teacher"], parts["conditioner"], parts[part]
 
     def loss(batch, g, step):
         z0, pos = _latent(vq, batch, g)
@@ -153,7 +170,7 @@ def _student1(parts, cfg, runs, dataset) -> StageTask:
         return {"loss": student.combine_losses(terms),
                 **{k: v.detach() for k, v in terms.items()}}
 
-    return StageTask("student1", nn.ModuleDict({"student": stu}), loss,
+    return StageTask(name, nn.ModuleDict({part: stu}), loss,
                      frozen={"vqvae": vq, "teacher": teacher, "conditioner": cond})
 
 
@@ -205,14 +222,28 @@ def _surrogate(parts, cfg, runs, dataset) -> StageTask:
 
 
 def _student2(parts, cfg, runs, dataset) -> StageTask:
-    _frozen(parts, runs, "vqvae", ("vqvae",), "student2")
-    _frozen(parts, runs, "teacher", ("teacher", "conditioner"), "student2")
-    _frozen(parts, runs, "potential", ("potential",), "student2")
     for stage, name in (("student1", "student"), ("ctmc", "planner")):
         if not (runs / stage / "final.pt").exists():
             raise StageUnavailable(f"stage 'student2' needs stage '{stage}' trained first")
         parts[name].load_state_dict(load_final(runs, stage)[name])
-    vq, teacher, cond, stu = parts["vqvae"], parts["teacher"], parts["conditioner"], parts["student"]
+    return _phase2("student2", parts, runs, "student", heads_train=True)
+
+
+def _controlnet2(parts, cfg, runs, dataset) -> StageTask:
+    _frozen(parts, runs, "student2", ("planner", "latent_head"), "controlnet2")
+    if not (runs / "controlnet1" / "final.pt").exists():
+        raise StageUnavailable("stage 'controlnet2' needs stage 'controlnet1' trained first")
+    parts["controlnet_student"].load_state_dict(load_final(runs, "controlnet1")["controlnet_student"])
+    return _phase2("controlnet2", parts, runs, "controlnet_student", heads_train=False)
+
+
+def _phase2(name: str, parts: dict, runs: Path, part: str, heads_train: bool) -> StageTask:
+    """The student's full objective (phase 2) on parts[part]; the planner and latent head train
+    with it when `heads_train`, else they are frozen (and their own losses drop out)."""
+    _frozen(parts, runs, "vqvae", ("vqvae",), name)
+    _frozen(parts, runs, "teacher", ("teacher", "conditioner"), name)
+    _frozen(parts, runs, "potential", ("potential",), name)
+    vq, teacher, cond, stu = parts["vqvae"], parts["teacher"], parts["conditioner"], parts[part]
     planner, head, pot = parts["planner"], parts["latent_head"], parts["potential"]
     weights = student.LossWeights()
 
@@ -224,8 +255,9 @@ def _student2(parts, cfg, runs, dataset) -> StageTask:
         plan = planner(z0, batch, batch["contact"])
         terms, sample, v = student.phase1_losses(stu, teacher, z0, enc.conditioning, pos,
                                                  plan.occupancy.detach(), g)
-        terms["ctmc"], _ = ctmc.ctmc_loss(plan, batch["phase"], batch["has_labels"], planner.cfg)
-        terms["lat"], _ = alignment.latent_alignment_loss(head, z0, s3d, enc.present, cond.cfg)
+        if heads_train:
+            terms["ctmc"], _ = ctmc.ctmc_loss(plan, batch["phase"], batch["has_labels"], planner.cfg)
+            terms["lat"], _ = alignment.latent_alignment_loss(head, z0, s3d, enc.present, cond.cfg)
         # Total potential V_psi + lambda_lat E_lat at the student's state; raw-space energies
         # join once they can be built from batched controls (see report).
         z = sample.z_t.detach().requires_grad_(True)
@@ -236,8 +268,11 @@ def _student2(parts, cfg, runs, dataset) -> StageTask:
         terms["consist"] = student.consistency_loss(stu, sample, pos, plan.occupancy.detach(), v)
         return {"loss": student.combine_losses(terms, weights), **{k: t.detach() for k, t in terms.items()}}
 
-    return StageTask("student2", nn.ModuleDict({"student": stu, "planner": planner, "latent_head": head}), loss,
-                     frozen={"vqvae": vq, "teacher": teacher, "conditioner": cond, "potential": pot})
+    trainable = {part: stu, "planner": planner, "latent_head": head} if heads_train else {part: stu}
+    frozen = {"vqvae": vq, "teacher": teacher, "conditioner": cond, "potential": pot}
+    if not heads_train:
+        frozen.update(planner=planner, latent_head=head)
+    return StageTask(name, nn.ModuleDict(trainable), loss, frozen=frozen)
 
 
 def _preview(parts, cfg, runs, dataset) -> StageTask:
@@ -269,4 +304,6 @@ def _preview(parts, cfg, runs, dataset) -> StageTask:
 
 _BUILDERS = {"vqvae": _vqvae, "encoders": _encoders, "teacher": _teacher, "student1": _student1,
              "potential": _potential, "ctmc": _ctmc, "surrogate": _surrogate, "student2": _student2,
-             "preview": _preview}
+             "preview": _preview, "sketch2anim": _sketch2anim,
+             "controlnet1": lambda *a: _student1(*a, name="controlnet1", part="controlnet_student"),
+             "controlnet2": _controlnet2}

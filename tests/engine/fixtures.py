@@ -75,4 +75,5 @@ def fake_conditioning(batch: int, t_lat: int, entities: int = 3, d_model: int = 
     g = torch.Generator().manual_seed(seed)
     return Conditioning(residual=torch.randn(batch, t_lat, entities, d_model, generator=g),
                         temporal_bias=0.1 * torch.randn(batch, t_lat, t_lat, generator=g),
-                        embed=torch.randn(batch, d_e, generator=g))
+                        embed=torch.randn(batch, d_e, generator=g),
+                        by_type=torch.randn(batch, t_lat, entities, 3, d_model, generator=g))

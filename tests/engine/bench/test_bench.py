@@ -13,7 +13,7 @@ from engine.bench.command import command_line
 from engine.bench.diagnostics import nudged
 from engine.bench.protocol import ProtocolConfig, build_protocols
 from engine.bench.report import render, write
-from engine.bench.runner import OURS, TEACHER_DDIM, RunnerConfig
+from engine.bench.runner import OURS, SKETCH2ANIM, TEACHER_DDIM, RunnerConfig
 from engine.bench.speed import SpeedConfig
 from engine.bench.suite import BenchConfig, run_bench
 from engine.bench.targets import PAPER_TARGETS, check_targets, relative_change
@@ -39,7 +39,7 @@ def tiny_run(tmp_path_factory):
     replace(real, obj_pose=None, obj_anchors=None, obj_type=None, obj_size=None, phase=None,
             contact=None).save(data / "salsa" / "60_10_61_10.npz")
     bundle = untrained_bundle(replace(ModelConfig.default(), schedule=VPSchedule(steps=4)))
-    methods = (_few_steps(OURS), _few_steps(TEACHER_DDIM))
+    methods = (_few_steps(OURS), _few_steps(TEACHER_DDIM), SKETCH2ANIM)   # the bundle has no baselines: left out
     config = BenchConfig(
         protocol=ProtocolConfig(scenarios=("carry_together", "handoff"), per_scenario=1, noise_scenes=1,
                                 artist_scenes=1, noise_levels=(0.4,), real_windows=1, data_dir=data, shared_dir=root / "none"),
@@ -77,6 +77,8 @@ def test_markdown_has_every_table_and_the_command(tiny_run):
                     "### Ours vs the COLLAGE Teacher", "## Speed", "## Diagnostics", "Sketch+text"):
         assert heading in md
     assert "| Ours | 2 |" in md and "| COLLAGE Teacher (DDIM-50) | 2 |" in md
+    assert "Not run: Sketch2Anim-INT (DDIM-50) + finishing: no trained weights" in md
+    assert "| Sketch2Anim-INT" not in md
     assert "Wall time (s) vs clip length" in md and "2 people + 1 object" in md
     assert "Stroke-nudge stability" in md and "| mean change | median change | max change |" in md
     for name in ("guidance_sweep", "contact_reliability", "flow_curvature", "energy_alignment"):

@@ -2,6 +2,7 @@
 guided field, and the loss is the jump velocities' error, zero for a field that is the reference's."""
 import torch
 
+from engine.models.conditioning import Conditioning
 from engine.models.preview import PREVIEW_STEPS, preview_loss, preview_times, reference_path
 
 
@@ -30,11 +31,9 @@ class Jumps(torch.nn.Module):
         return self.scale * z * (1 - torch.exp(torch.tensor(-jump))) / jump   # exact for z' = z
 
 
-class Repeatable:
-    """The few conditioning fields preview_loss repeats, zero-sized."""
-    residual = torch.zeros(2, 1, 1, 1)
-    temporal_bias = torch.zeros(2, 1, 1)
-    embed = torch.zeros(2, 1)
+def _conditioning():
+    """A zero-sized conditioning for preview_loss to repeat."""
+    return Conditioning(residual=torch.zeros(2, 1, 1, 1), temporal_bias=torch.zeros(2, 1, 1), embed=torch.zeros(2, 1))
 
 
 def test_the_loss_is_zero_for_the_exact_jumps_and_teaches_otherwise():
@@ -42,10 +41,10 @@ def test_the_loss_is_zero_for_the_exact_jumps_and_teaches_otherwise():
     states = [z1 * torch.exp(torch.tensor(t - 1.0)) for t in preview_times()]
     positions = [None] + [s[..., :3] for s in states[1:-1]]
     model = Jumps()
-    exact = preview_loss(model, states, positions, Repeatable(), None)
+    exact = preview_loss(model, states, positions, _conditioning(), None)
     assert exact["loss"] < 1e-10 and {f"jump{k}" for k in range(PREVIEW_STEPS)} <= set(exact)
     with torch.no_grad():
         model.scale.fill_(1.5)
-    off = preview_loss(model, states, positions, Repeatable(), None)
+    off = preview_loss(model, states, positions, _conditioning(), None)
     off["loss"].backward()
     assert off["loss"] > 1e-3 and model.scale.grad > 0

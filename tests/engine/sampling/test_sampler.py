@@ -220,3 +220,18 @@ def test_a_bundle_without_a_preview_student_says_so(storyboard, tmp_path):
     assert loaded.has_part("student") and not loaded.has_part("preview")
     with pytest.raises(SamplerError, match="no preview student"):
         drain(sample(loaded, storyboard, sampler_config(preview=True)))
+
+
+def test_the_controlnet_ablation_integrates_its_own_student(lively_bundle, storyboard):
+    from engine.models.bundle import build_parts
+    config = SamplerConfig(steps=3, seed=1, student_part="controlnet_student")
+    with pytest.raises(SamplerError, match="no trained 'controlnet_student'"):
+        drain(sample(lively_bundle, storyboard, config))
+    ablation = build_parts(lively_bundle.config, ("controlnet_student",))["controlnet_student"].eval()
+    ablation.backbone.main.load_state_dict(lively_bundle.student.backbone.state_dict())   # the same main network
+    with_it = replace(lively_bundle, parts={**lively_bundle.parts, "controlnet_student": ablation}, trained=True)
+    _, ours = drain(sample(with_it, storyboard, replace(config, student_part="student")))
+    _, result = drain(sample(with_it, storyboard, config))
+    assert result.network_evals == ours.network_evals
+    # its branches start at zero: the storyboard reaches it only through the guidance, not the network
+    assert np.abs(result.clips[0].joints - ours.clips[0].joints).max() > 1e-4

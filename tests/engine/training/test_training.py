@@ -192,3 +192,37 @@ def test_bundle_fallback_roundtrip_and_errors(tmp_path):
         load_bundle(tmp_path / "wrong.pt")
     with pytest.raises(ValueError):  # BundleError is a ValueError for callers that catch those
         load_default(tmp_path / "junk.pt")
+
+
+def test_baseline_stages_train_on_the_models_runs_and_ship_tied_to_their_bundle(tmp_path):
+    from engine.models.bundle import BASELINE_PARTS, load_baselines, save_baselines
+    from engine.training.card import export_baselines
+    runs = tmp_path / "runs"
+    train("all", tiny_config(1), FakeClips(4), runs=runs, progress=False)
+    for stage in ("sketch2anim", "controlnet1", "controlnet2"):
+        metrics = train(stage, tiny_config(2), FakeClips(4), runs=runs, progress=False)[stage]
+        assert torch.isfinite(torch.tensor(metrics["loss"])), stage
+    bundle = bundle_from_runs(runs, TINY_MODEL)
+    bundle.save(tmp_path / "bundle.pt")
+    base = load_bundle(tmp_path / "bundle.pt")
+    assert not base.has_part("sketch2anim")
+    card = export_baselines(runs, tmp_path / "baselines.pt", [], [], base=tmp_path / "bundle.pt")
+    assert card["stages"] == ["sketch2anim", "controlnet1", "controlnet2"]
+    assert (tmp_path / "baselines.md").read_text().startswith("# Model card")
+    both = load_baselines(base, tmp_path / "baselines.pt")
+    assert all(both.has_part(name) for name in BASELINE_PARTS) and both.has_part("student")
+    final = checkpoint.load(runs / "controlnet2" / "final.pt")["parts"]["controlnet_student"]
+    w = both.controlnet_student.backbone.branches["kf"].hint.weight
+    assert torch.allclose(w, final["backbone.branches.kf.hint.weight"], atol=1e-2 * float(w.abs().max()) + 1e-6)
+    # Trained with another bundle: refused in one line, nothing half-loaded.
+    other = untrained_bundle(TINY_MODEL)
+    other.metadata["weights_sha256"] = "another"
+    with pytest.raises(BundleError, match="trained with another model bundle"):
+        load_baselines(other, tmp_path / "baselines.pt")
+    with pytest.raises(ValueError):
+        save_baselines(tmp_path / "x.pt", base, {"student": base.student}, {})
+
+
+def test_baseline_stage_without_its_prerequisite_is_a_clear_error(tmp_path):
+    with pytest.raises(StageUnavailable, match="controlnet2. needs stage"):
+        train("controlnet2", tiny_config(1), FakeClips(2), runs=tmp_path, progress=False)

@@ -1,0 +1,55 @@
+"""The Sketch2Anim-INT network (engine.baselines.sketch2anim runs it): a diffusion model in raw
+motion space whose storyboard enters through keypose, trajectory and object ControlNet branches
+(models/controlnet.py), with its own copy of the aligned 2D/3D sketch encoder at frame rate.
+
+Raw motion: the VQ-VAE's normalized frame features per entity (x (B, N, 3, 201); the object's 19
+zero-padded), so the baseline learns the same data with the same normalization, without the
+latent. Its backbone is our teacher's U-Net configuration at frame rate.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from .conditioning import Conditioning
+from .controlnet import ParallelControlNets
+from .encoders import EncoderConfig, SketchConditioner
+from .teacher import DiffusionTeacher, VPSchedule
+from .unet import UNetConfig
+from .vqvae import HUMAN_FEATURES, NUM_HUMANS, EntityVQVAE
+
+
+class Sketch2AnimINT(nn.Module):
+    def __init__(self, unet: UNetConfig, encoder: EncoderConfig, schedule: VPSchedule):
+        super().__init__()
+        self.conditioner = SketchConditioner(encoder)
+        self.denoiser = DiffusionTeacher(ParallelControlNets(replace(unet, latent_dim=HUMAN_FEATURES,
+                                                                     cond_dim=encoder.d_model)), schedule)
+
+    @property
+    def feature_dim(self) -> int:
+        return HUMAN_FEATURES
+
+    def condition(self, controls: dict[str, torch.Tensor], frames: int) -> Conditioning:
+        """The storyboard's controls at frame rate (one 'latent step' per frame)."""
+        return self.conditioner.encode(controls, frames, NUM_HUMANS + 1).conditioning
+
+    @staticmethod
+    def features(vqvae: EntityVQVAE, batch: dict) -> torch.Tensor:
+        """Motion batch -> x (B, N, 3, 201): normalized frame features per entity."""
+        human, obj = vqvae.normalized_features(batch)
+        return torch.cat([human, F.pad(obj, (0, human.shape[-1] - obj.shape[-1]))], 2)
+
+    @staticmethod
+    def motion(vqvae: EntityVQVAE, x: torch.Tensor) -> dict[str, torch.Tensor]:
+        """x (B, N, 3, 201) -> the motion dict of EntityVQVAE.decode."""
+        return vqvae.motion_from_features(x[:, :, :NUM_HUMANS], x[:, :, NUM_HUMANS:, :vqvae.cfg.object_features])
+
+    def loss(self, vqvae: EntityVQVAE, batch: dict, generator: torch.Generator) -> dict[str, torch.Tensor]:
+        """Epsilon loss on the raw features with 10% of the storyboards dropped."""
+        with torch.no_grad():
+            x0 = self.features(vqvae, batch)
+        return self.denoiser.loss(x0, self.condition(batch, x0.shape[1]), None, generator=generator)
