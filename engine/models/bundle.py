@@ -46,6 +46,9 @@ OPTIONAL_PARTS = ("preview",)
 # laid over the bundle they were trained with by `load_baselines`): the Sketch2Anim-INT baseline
 # and the "parallel ControlNets" ablation's student.
 BASELINE_PARTS = ("sketch2anim", "controlnet_student")
+# The bundle parts each baseline was trained against: it is only valid with those very weights.
+BASELINE_DEPENDS = {"sketch2anim": ("vqvae",),
+                    "controlnet_student": ("vqvae", "teacher", "conditioner", "planner", "latent_head", "potential")}
 
 
 class BundleError(ValueError):
@@ -134,7 +137,8 @@ class ModelBundle:
     def save(self, path: str | Path) -> None:
         """Half-precision weights (buffers that count things stay as they are), atomically."""
         absent = set(self.metadata.get("absent_parts", ()))
-        meta = {k: v for k, v in self.metadata.items() if k not in ("absent_parts", "weights_sha256")}  # found again on load
+        meta = {k: v for k, v in self.metadata.items()
+                if k not in ("absent_parts", "weights_sha256", "part_sha256")}  # found again on load
         _write(path, self.config, {n: m for n, m in self.parts.items() if n not in absent and n not in BASELINE_PARTS},
                {**meta, "trained": self.trained})
 
@@ -226,35 +230,44 @@ def load_bundle(path: str | Path) -> ModelBundle:
         missing = ", ".join(sorted(set(absent) - set(OPTIONAL_PARTS)))
         raise BundleError(f"{path}: marked trained but has no weights for {missing}")
     _load_weights(path, parts, weights)
-    meta = {**meta, "absent_parts": absent, "weights_sha256": digest}
+    meta = {**meta, "absent_parts": absent, "weights_sha256": digest,
+            "part_sha256": {name: weights_digest({name: state}) for name, state in weights.items()}}
     return ModelBundle(cfg, parts, trained=bool(meta.get("trained", False)), metadata=meta).eval()
 
 
 def save_baselines(path: str | Path, bundle: ModelBundle, parts: dict[str, nn.Module], metadata: dict) -> None:
-    """Write baseline parts (BASELINE_PARTS names) trained with `bundle`, tied to its weights."""
+    """Write baseline parts (BASELINE_PARTS names) trained with `bundle` (as loaded from its file),
+    each tied to the digests of the bundle parts it was trained against (BASELINE_DEPENDS)."""
     if not set(parts) <= set(BASELINE_PARTS):
         raise ValueError(f"not baseline parts: {sorted(set(parts) - set(BASELINE_PARTS))}")
-    _write(path, bundle.config, parts, {**metadata, "base_weights_sha256": bundle.metadata.get("weights_sha256")})
+    digests = bundle.metadata.get("part_sha256", {})
+    depends = {name: {dep: digests.get(dep) for dep in BASELINE_DEPENDS[name]} for name in parts}
+    _write(path, bundle.config, parts, {**metadata, "depends_on": depends})
 
 
 def load_baselines(bundle: ModelBundle, path: str | Path) -> ModelBundle:
-    """`bundle` with the baseline parts of `path` added (absent ones untrained, has_part False).
-    The file must have been trained with this very bundle (its weights' digest), since the
-    baselines share its VQ-VAE normalization, teacher, planner and latent head."""
+    """`bundle` with the baseline parts of `path` added. A part trained against other weights of
+    the bundle parts it depends on (a retrained teacher, say) is left out like an absent one
+    (has_part False; metadata["stale_baselines"] names it): its figures would not be its own."""
     path = Path(path)
     cfg, weights, meta, _ = _read(path)
-    if meta.get("base_weights_sha256") != bundle.metadata.get("weights_sha256"):
-        raise BundleError(f"{path}: these baselines were trained with another model bundle; retrain them "
-                          "(sketch2colab train sketch2anim / controlnet1 / controlnet2) on this one")
     if cfg.to_dict() != bundle.config.to_dict():
         raise BundleError(f"{path}: the baselines' model config differs from the bundle's")
+    digests = bundle.metadata.get("part_sha256", {})
+    depends = meta.get("depends_on", {})
+
+    def current(name: str) -> bool:
+        deps = depends.get(name)
+        return deps is not None and all(digests.get(dep) is not None and digests[dep] == d for dep, d in deps.items())
+
+    stale = [name for name in weights if name in BASELINE_PARTS and not current(name)]
     parts = build_parts(cfg, BASELINE_PARTS)
     _load_weights(path, parts, weights)
     for module in parts.values():
         module.eval().requires_grad_(False)
-    absent = [*bundle.metadata.get("absent_parts", ()), *(n for n in BASELINE_PARTS if n not in weights)]
+    absent = [*bundle.metadata.get("absent_parts", ()), *(n for n in BASELINE_PARTS if n not in weights or n in stale)]
     return replace(bundle, parts={**bundle.parts, **parts},
-                   metadata={**bundle.metadata, "absent_parts": absent, "baselines": meta})
+                   metadata={**bundle.metadata, "absent_parts": absent, "baselines": meta, "stale_baselines": stale})
 
 
 def untrained_bundle(cfg: ModelConfig | None = None, seed: int = 0) -> ModelBundle:

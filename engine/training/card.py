@@ -113,8 +113,8 @@ def export_baselines(runs: str | Path, output: str | Path, data: list[str], real
         "# Model card: the benchmark's trained baselines",
         "",
         f"`{output.name}`: {card['size_mb']} MB (half precision): {', '.join(card['parts'])}. Not part of the product: "
-        "`sketch2colab bench` lays them over the bundle they were trained with (`load_baselines` checks its "
-        f"weights' SHA-256, `{bundle.metadata.get('weights_sha256')}`).",
+        "`sketch2colab bench` lays them over the bundle they were trained with (`load_baselines` leaves out a "
+        "baseline whose bundle parts changed since: each records their weights' SHA-256).",
         "",
         "- sketch2anim: Sketch2Anim-INT (engine/models/sketch2anim.py, engine/baselines/sketch2anim.py).",
         "- controlnet_student: the parallel-ControlNets ablation's student (engine/models/controlnet.py), "

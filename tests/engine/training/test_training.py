@@ -214,11 +214,15 @@ def test_baseline_stages_train_on_the_models_runs_and_ship_tied_to_their_bundle(
     final = checkpoint.load(runs / "controlnet2" / "final.pt")["parts"]["controlnet_student"]
     w = both.controlnet_student.backbone.branches["kf"].hint.weight
     assert torch.allclose(w, final["backbone.branches.kf.hint.weight"], atol=1e-2 * float(w.abs().max()) + 1e-6)
-    # Trained with another bundle: refused in one line, nothing half-loaded.
-    other = untrained_bundle(TINY_MODEL)
-    other.metadata["weights_sha256"] = "another"
-    with pytest.raises(BundleError, match="trained with another model bundle"):
-        load_baselines(other, tmp_path / "baselines.pt")
+    # A retrained teacher: the ablation's student (distilled from it) is left out, Sketch2Anim-INT
+    # (which only shares the VQ-VAE) stays.
+    changed = load_bundle(tmp_path / "bundle.pt")
+    changed.metadata["part_sha256"]["teacher"] = "another"
+    moved = load_baselines(changed, tmp_path / "baselines.pt")
+    assert moved.has_part("sketch2anim") and not moved.has_part("controlnet_student")
+    assert moved.metadata["stale_baselines"] == ["controlnet_student"]
+    with pytest.raises(BundleError, match="model config differs"):
+        load_baselines(untrained_bundle(), tmp_path / "baselines.pt")
     with pytest.raises(ValueError):
         save_baselines(tmp_path / "x.pt", base, {"student": base.student}, {})
 
