@@ -46,6 +46,8 @@ from .io.resample import resample_clip
 from .models.slots import MODEL_FPS, NUM_HUMANS, fixed_controls
 from .objects import NUM_ANCHORS
 from .sketchify import SketchifyConfig, sketchify
+from .synth.captions import caption
+from .text import tokenize, with_unknown_words
 
 # CMU salsa takes (lead/follow pair) that training never sees. Take 10 is the held-out pair
 # because it is the shortest (1197 frames at 120 fps, ~10 s), so holding it out costs the least
@@ -67,6 +69,7 @@ class DatasetConfig:
     sketch: SketchifyConfig = field(default_factory=SketchifyConfig.training)
     artist_share: float = 0.0         # storyboards redrawn the way artists draw (engine.artist_sketch),
                                       # half by hand, half posed with the canvas's tools
+    unknown_word_share: float = 0.1   # caption words replaced by ones the text encoder does not know
     seed: int = 0
 
 
@@ -156,6 +159,8 @@ class StoryboardWindows(Dataset):
         item["valid"] = valid
         item["noise"] = np.float32(noise)
         item.update(fixed_controls(controls))
+        words = np.random.default_rng([cfg.seed, self.epoch, index, 1])   # its own stream: the sketch's stays
+        item.update(with_unknown_words(tokenize(caption(window, words)), cfg.unknown_word_share, words))
         return {k: torch.from_numpy(np.asarray(v)) for k, v in item.items()}
 
 

@@ -19,6 +19,7 @@ from .controls import Controls, build_controls
 from .models.slots import MODEL_FPS, NUM_HUMANS, NUM_OBJECTS, fixed_controls
 from .sampling.config import SamplerConfig, SamplerError
 from .storyboard import Storyboard
+from .text import tokenize
 
 
 @dataclass(frozen=True)
@@ -27,7 +28,7 @@ class ModelView:
     storyboard: Storyboard          # retimed to MODEL_FPS and padded (the tail is unconstrained)
     frames: int                     # frames of motion at MODEL_FPS; the rest is padding
     controls: Controls              # of `storyboard` (N padded frames)
-    fixed: dict[str, np.ndarray]    # `controls` in the model's slots (fixed_controls)
+    fixed: dict[str, np.ndarray]    # `controls` in the model's slots (fixed_controls) and the text's tokens
 
     @property
     def length(self) -> int:
@@ -64,7 +65,8 @@ class Request:
             if padded != frames:
                 model_sb = replace(model_sb, length=padded)
             controls = build_controls(model_sb)
-            self._views[stride] = ModelView(model_sb, frames, controls, fixed_controls(controls))
+            fixed = {**fixed_controls(controls), **tokenize(self.storyboard.text)}
+            self._views[stride] = ModelView(model_sb, frames, controls, fixed)
         return self._views[stride]
 
     @cached_property

@@ -71,6 +71,13 @@ class ModelConfig:
         """Sized for the 2-core CPU product target."""
         return cls()
 
+    def with_text(self) -> "ModelConfig":
+        """The same model reading the storyboard's text too (models/text.py)."""
+        width = self.encoder.text_dim
+        return dataclasses.replace(self, encoder=dataclasses.replace(self.encoder, text=True),
+                                   teacher_unet=dataclasses.replace(self.teacher_unet, text_dim=width),
+                                   student_unet=dataclasses.replace(self.student_unet, text_dim=width))
+
     @classmethod
     def large(cls) -> "ModelConfig":
         """Wider networks for GPU training (the latent interface stays the same)."""

@@ -29,7 +29,7 @@ def _zero_linear(inp: int, out: int) -> nn.Linear:
 class ControlBranch(nn.Module):
     def __init__(self, cfg: UNetConfig, hint_dim: int):
         super().__init__()
-        self.net = TemporalUNet(replace(cfg, n_heads_out=1, down_only=True))
+        self.net = TemporalUNet(replace(cfg, n_heads_out=1, down_only=True, text_dim=0))   # text: the main network's
         self.hint = _zero_linear(hint_dim, cfg.channels[0])
         self.out = nn.ModuleList(_zero_linear(c, c) for c in (*cfg.channels, cfg.channels[-1]))
 

@@ -23,8 +23,8 @@ Losses the trainer calls (encoder stage, student stage) and the inference energy
 with s2d = conditioner.embed_2d(controls), s3d = conditioner.embed_3d(controls, motion),
 present = condition_presence(controls).
 
-Text: the paper's optional bottleneck cross-attention over a text encoding is not shipped (no
-text encoder here); `EncoderConfig.text` exists so configs can say so and must stay False.
+Text (`EncoderConfig.text`): controls["text_ids"], ["text_mask"] (engine.text.tokenize) through
+a TextEncoder (models/text.py) into Conditioning.text, which the U-Net's bottleneck reads.
 """
 from __future__ import annotations
 
@@ -37,6 +37,7 @@ from torch import nn
 
 from ..skeleton import NUM_JOINTS, rest_pose
 from .conditioning import CONDITION_TYPES, Conditioning
+from .text import TextEncoder
 
 TIME_FREQUENCIES = 4  # sinusoidal features of normalized time: 2 * 4 numbers
 
@@ -53,7 +54,8 @@ class EncoderConfig:
     phase_dim: int = 16            # embedding of the along-path phase for the temporal bias
     temperature: float = 0.1       # InfoNCE temperature on cosine similarities
     lambda_nce: float = 1.0        # lambda_c in L_align and lambda_NCE in L_lat (smaller lets the L2 term collapse all embeddings together first)
-    text: bool = False             # text cross-attention: not shipped, must stay False
+    text: bool = False             # encode the storyboard's text (models/text.py)
+    text_dim: int = 64             # its token features' width (UNetConfig.text_dim must match)
 
 
 # ---- small helpers ------------------------------------------------------------------------
@@ -396,9 +398,9 @@ class SketchConditioner(nn.Module):
     def __init__(self, cfg: EncoderConfig | None = None):
         super().__init__()
         cfg = cfg or EncoderConfig()
-        if cfg.text:
-            raise NotImplementedError("text cross-attention is not shipped; set EncoderConfig.text=False")
         self.cfg = cfg
+        if cfg.text:
+            self.text = TextEncoder(cfg.text_dim)
         h, j = cfg.num_humans, NUM_JOINTS
         ctx2d, ctx3d = 8 + h + 9, 8 + h
         self.enc2d = nn.ModuleDict({"kf": MaskedSetEncoder(j * 3 + ctx2d, cfg.hidden, cfg.d_e),
@@ -451,8 +453,12 @@ class SketchConditioner(nn.Module):
                                self._slots(none_h, obj, v)], 3)
         s2d = self.embed_2d(controls)
         embed = self.pool(torch.cat([s2d[y] for y in CONDITION_TYPES], -1))
-        return SketchEncoding(Conditioning(residual=residual, temporal_bias=bias, embed=embed, by_type=by_type),
-                              s2d, condition_presence(controls), lifted)
+        text = text_mask = None
+        if self.cfg.text and "text_ids" in controls:
+            text_mask = controls["text_mask"].to(residual.dtype)
+            text = self.text(controls["text_ids"], text_mask)
+        return SketchEncoding(Conditioning(residual=residual, temporal_bias=bias, embed=embed, by_type=by_type,
+                                           text=text, text_mask=text_mask), s2d, condition_presence(controls), lifted)
 
     def _slots(self, human: torch.Tensor, obj: torch.Tensor, v: int) -> torch.Tensor:
         """Per-entity features (B, T_lat, V, d): the humans', the objects' up to V, zero slots after."""

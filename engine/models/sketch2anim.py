@@ -25,9 +25,9 @@ from .vqvae import HUMAN_FEATURES, NUM_HUMANS, EntityVQVAE
 class Sketch2AnimINT(nn.Module):
     def __init__(self, unet: UNetConfig, encoder: EncoderConfig, schedule: VPSchedule):
         super().__init__()
-        self.conditioner = SketchConditioner(encoder)
+        self.conditioner = SketchConditioner(replace(encoder, text=False))          # sketch only
         self.denoiser = DiffusionTeacher(ParallelControlNets(replace(unet, latent_dim=HUMAN_FEATURES,
-                                                                     cond_dim=encoder.d_model)), schedule)
+                                                                     cond_dim=encoder.d_model, text_dim=0)), schedule)
 
     @property
     def feature_dim(self) -> int:

@@ -7,7 +7,8 @@ steps, plus Conditioning.temporal_bias resampled to the level's length) followed
 entity-graph attention across the V tokens of each latent step, whose logits subtract
 lambda_h * pairwise entity distance (metres, from VQ-VAE decode_lowres; lambda_h >= 0 per head).
 Conditioning.residual is projected once and pooled to each level's length, then added after the
-level's residual block on the way down. The network only maps tensors to tensors; what the
+level's residual block on the way down. With `text_dim`, the bottleneck cross-attends to the
+storyboard text (models/text.py). The network only maps tensors to tensors; what the
 output means (noise, velocity sub-fields) belongs to the teacher and the student.
 """
 from __future__ import annotations
@@ -20,6 +21,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from .conditioning import Conditioning
+from .text import TextCrossAttention
 
 
 @dataclass
@@ -37,6 +39,7 @@ class UNetConfig:
     cond_embed_dim: int = 256                     # Conditioning.embed size d_e
     n_heads_out: int = 1                          # output fields: 1 teacher, S = 3 student
     down_only: bool = False                       # no up path: a ControlNet branch (models/controlnet.py)
+    text_dim: int = 0                             # Conditioning.text width; 0: no text cross-attention
 
     @classmethod
     def default(cls, **kw) -> "UNetConfig":
@@ -159,6 +162,8 @@ class TemporalUNet(nn.Module):
         c_prev = ch[-1]
         self.mid_block = ResBlock(ch[-1], ch[-1])
         self.mid_attn = EntityTemporalAttention(ch[-1], cfg.heads, cfg.distance_lambda)
+        if cfg.text_dim:
+            self.text_attn = TextCrossAttention(ch[-1], cfg.text_dim, cfg.heads)
         self.up_blocks, self.upsample = nn.ModuleList(), nn.ModuleList()
         for i in reversed(range(len(ch))):
             self.up_blocks.append(ResBlock(c_prev + ch[i], ch[i]))
@@ -188,6 +193,8 @@ class TemporalUNet(nn.Module):
         if control is not None:
             skips = [s + c for s, c in zip(skips, control)]
             x = x + control[-1]
+        if self.cfg.text_dim:
+            x = self.text_attn(x, v, ctx.text, ctx.text_mask)
         k = len(self.down_blocks) + 1
         for j, block in enumerate(self.up_blocks):
             x = block(torch.cat([x, skips.pop()], -1), ctx.film[k])
@@ -236,7 +243,7 @@ class TemporalUNet(nn.Module):
             dist = torch.cdist(entity_pos, entity_pos)  # (B, T, V, V)
             distance = {i: _pool_distance(dist, lengths[i]) for i in attn_levels}
         r = self.cond_residual(cond.residual).transpose(1, 2).reshape(b * v, t, -1)
-        return _Context(v, film, lengths, tbias, distance, r.split(list(cfg.channels), -1))
+        return _Context(v, film, lengths, tbias, distance, r.split(list(cfg.channels), -1), cond.text, cond.text_mask)
 
     def _down(self, ctx: "_Context", x: torch.Tensor) -> tuple[list[torch.Tensor], torch.Tensor]:
         """Input features (B*V, T, C_0) -> (each level's skip, the bottleneck's output)."""
@@ -273,6 +280,8 @@ class _Context:
     tbias: dict[int, torch.Tensor]       # per attention level (B, T_l, T_l)
     distance: dict[int, torch.Tensor]    # per attention level (B, T_l, V, V); empty without positions
     residuals: tuple[torch.Tensor, ...]  # per level (B*V, T, C_l) storyboard residual
+    text: torch.Tensor | None            # (B, L, d_text) or None (no text)
+    text_mask: torch.Tensor | None       # (B, L)
 
 
 def _pool_time(x: torch.Tensor, length: int) -> torch.Tensor:

@@ -63,7 +63,7 @@ def export_default(runs: str | Path, output: str | Path, data: list[str], real: 
                    config: str = "default", command: str = "") -> dict:
     """Bundle runs/ into `output`, measure it on the held-out splits, write the model card."""
     cfg = CONFIGS[config]()
-    bundle = bundle_from_runs(runs, cfg.model)
+    bundle = bundle_from_runs(runs)
     output = Path(output)
     bundle.metadata.update(commit=_git("rev-parse", "HEAD"), dirty=bool(_git("status", "--porcelain")),
                            training_data={"synthesized": data, "real": real}, seed=cfg.seed, config=config)

@@ -20,7 +20,8 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
                   real: list[str] | None = None, steps: int | None = None, resume: bool = False,
                   runs: str = "runs", threads: int | None = None, from_bundle: str | None = None,
                   batch_size: int | None = None, lr: float | None = None, minutes: float | None = None,
-                  workers: int | None = None, artist_share: float = 0.0, warm_start: bool = False) -> dict:
+                  workers: int | None = None, artist_share: float = 0.0, warm_start: bool = False,
+                  text: bool = False) -> dict:
     from ..dataset import DatasetConfig, StoryboardWindows, split_files
     cfg = CONFIGS[config]()
     if steps is not None:
@@ -43,6 +44,8 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
     if not 0.0 <= artist_share <= 1.0:
         raise TrainError(f"--artist-share must be between 0 and 1, got {artist_share}")
     cfg.warm_start = warm_start
+    if text:
+        cfg.model = cfg.model.with_text()
     files = []
     for folder in data or []:
         if not Path(folder).is_dir():

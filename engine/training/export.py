@@ -8,10 +8,13 @@ from . import checkpoint
 from .config import OPTIONAL_STAGES, STAGE_PARTS, STAGES
 
 
-def bundle_from_runs(runs: str | Path, config: ModelConfig) -> ModelBundle:
+def bundle_from_runs(runs: str | Path, config: ModelConfig | None = None) -> ModelBundle:
     """Every part found in runs/<stage>/final.pt (later stages win); trained=True only when all
-    stages are there. Parts no stage trained keep fresh weights."""
+    stages are there. Parts no stage trained keep fresh weights. `config`: the models' (default:
+    the one the last stage trained with, e.g. with text)."""
     runs = Path(runs)
+    if config is None:
+        config = runs_model_config(runs)
     parts = build_parts(config)
     done, metrics = [], {}
     for stage in STAGES:
@@ -27,6 +30,17 @@ def bundle_from_runs(runs: str | Path, config: ModelConfig) -> ModelBundle:
     required = [stage for stage in STAGES if stage not in OPTIONAL_STAGES]
     return ModelBundle(config, parts, trained=all(stage in done for stage in required),
                        metadata={"stages": done, "metrics": metrics, "absent_parts": absent}).eval()
+
+
+def runs_model_config(runs: str | Path) -> ModelConfig:
+    """The model config of the last stage under runs/ that recorded one (ModelConfig() if none)."""
+    for stage in reversed(STAGES):
+        path = Path(runs) / stage / "final.pt"
+        if path.exists():
+            recorded = checkpoint.load(path).get("model_config")
+            if recorded:
+                return ModelConfig.from_dict(recorded)
+    return ModelConfig()
 
 
 def runs_from_bundle(bundle: ModelBundle, runs: str | Path) -> list[str]:

@@ -106,8 +106,11 @@ def run_task(task: StageTask, dataset: Dataset, cfg: TrainConfig, run_dir: Path,
     if cfg.warm_start and not resuming and (run_dir / "final.pt").exists():   # fine-tune what the stage made
         made = checkpoint.load(run_dir / "final.pt")["parts"]
         for name, part in model.items():
-            if name in made:
-                part.load_state_dict(made[name])
+            if name in made:   # layers the model gained since (text) start fresh; anything else must fit
+                unexpected = part.load_state_dict(made[name], strict=False).unexpected_keys
+                if unexpected:
+                    raise checkpoint.CheckpointError(f"{run_dir / 'final.pt'}: {name} has weights this model lacks "
+                                                     f"({unexpected[0]}, ...)")
     for frozen in task.frozen.values():
         frozen.to(device)
     module = _LossModule(task)

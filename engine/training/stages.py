@@ -30,6 +30,7 @@ from torch.utils.data import Dataset
 
 from ..models import alignment, ctmc, encoders, potential, preview, student, surrogate
 from ..models.bundle import BASELINE_PARTS, PARTS, build_parts
+from ..models.conditioning import Conditioning
 from ..models.vqvae import mean_joint_error
 from ..sampling.cfg import ClassifierFreeGuidance
 from ..sampling.config import SamplerConfig
@@ -39,6 +40,7 @@ from .config import BASELINE_STAGES, STAGES, TrainConfig
 LossFn = Callable[[dict, torch.Generator, int], dict]
 PREVIEW_CFG = SamplerConfig().cfg   # the guidance weight the preview bakes in: the sampler's default
 ENTITY_POS_DROP = 0.1   # share of steps trained without the entity-distance bias (first sampler step has none)
+TEXT_DROP = 0.3         # share of storyboards trained without their text (sketch-only generation)
 
 
 class StageUnavailable(RuntimeError):
@@ -89,6 +91,15 @@ def _latent(vqvae, batch: dict, generator: torch.Generator):
     return z0, pos
 
 
+def _text_dropped(cond: Conditioning, generator: torch.Generator) -> Conditioning:
+    """The batch's conditioning with TEXT_DROP of the samples' text removed (a model without text
+    conditioning ignores it anyway)."""
+    if cond.text_mask is None:
+        return cond
+    return cond.without_text(torch.rand(cond.text_mask.shape[0], generator=generator,
+                                        device=cond.text_mask.device) < TEXT_DROP)
+
+
 def build_stage(stage: str, cfg: TrainConfig, runs: Path, dataset: Dataset) -> StageTask:
     if stage not in STAGES + BASELINE_STAGES:
         raise ValueError(f"unknown stage {stage!r}; expected one of {', '.join(STAGES + BASELINE_STAGES)} or all")
@@ -132,7 +143,7 @@ def _teacher(parts, cfg, runs, dataset) -> StageTask:
 
     def loss(batch, g, step):
         z0, pos = _latent(vq, batch, g)
-        return teacher.loss(z0, cond(batch, z0.shape[1], z0.shape[2]), pos, generator=g)
+        return teacher.loss(z0, _text_dropped(cond(batch, z0.shape[1], z0.shape[2]), g), pos, generator=g)
 
     return StageTask("teacher", nn.ModuleDict({"teacher": teacher, "conditioner": cond}), loss,
                      frozen={"vqvae": vq})
@@ -140,7 +151,7 @@ def _teacher(parts, cfg, runs, dataset) -> StageTask:
 
 def _aligned_start(conditioner: nn.Module, runs: Path) -> None:
     if (runs / "encoders" / "final.pt").exists():  # aligned encoders are a better start; optional
-        conditioner.load_state_dict(load_final(runs, "encoders")["conditioner"])
+        conditioner.load_state_dict(load_final(runs, "encoders")["conditioner"], strict=False)   # text starts fresh
 
 
 def _sketch2anim(parts, cfg, runs, dataset) -> StageTask:
@@ -165,7 +176,7 @@ def _student1(parts, cfg, runs, dataset, name: str = "student1", part: str = "st
     def loss(batch, g, step):
         z0, pos = _latent(vq, batch, g)
         with torch.no_grad():
-            c = cond(batch, z0.shape[1], z0.shape[2])
+            c = _text_dropped(cond(batch, z0.shape[1], z0.shape[2]), g)
         terms, _, _ = student.phase1_losses(stu, teacher, z0, c, pos, _occupancy_labels(batch), g)
         return {"loss": student.combine_losses(terms),
                 **{k: v.detach() for k, v in terms.items()}}
@@ -253,7 +264,7 @@ def _phase2(name: str, parts: dict, runs: Path, part: str, heads_train: bool) ->
             enc = cond.encode(batch, z0.shape[1], z0.shape[2])
             s3d = cond.embed_3d(batch, batch)
         plan = planner(z0, batch, batch["contact"])
-        terms, sample, v = student.phase1_losses(stu, teacher, z0, enc.conditioning, pos,
+        terms, sample, v = student.phase1_losses(stu, teacher, z0, _text_dropped(enc.conditioning, g), pos,
                                                  plan.occupancy.detach(), g)
         if heads_train:
             terms["ctmc"], _ = ctmc.ctmc_loss(plan, batch["phase"], batch["has_labels"], planner.cfg)
@@ -292,7 +303,7 @@ def _preview(parts, cfg, runs, dataset) -> StageTask:
     def loss(batch, g, step):
         with torch.no_grad():
             z0 = vq.encode(batch)
-            c = cond(batch, z0.shape[1], z0.shape[2])
+            c = _text_dropped(cond(batch, z0.shape[1], z0.shape[2]), g)
             occupancy = planner(z0, batch, batch["contact"]).occupancy
             z1 = torch.randn(z0.shape, generator=g, device=z0.device)
             states, positions = preview.reference_path(field, vq.decode_lowres, z1, c, occupancy)

@@ -10,6 +10,7 @@ import torch
 
 from engine.objects import NUM_ANCHORS
 from engine.skeleton import rest_pose
+from engine.text import tokenize
 
 FRAMES = 120
 
@@ -46,8 +47,9 @@ def fake_item(seed: int = 0, frames: int = FRAMES, obj_present: bool = True) -> 
         "objpath2d": torch.randn(n, 1, 2, generator=g), "objpath_mask": (torch.rand(n, 1, generator=g) > 0.5).float(),
         "contact_anchor": torch.full((n, 2, 2), -1, dtype=torch.int64),
         "camera": torch.eye(3), "cam_target": torch.zeros(3),
+        **{k: torch.as_tensor(v) for k, v in tokenize(("two people carry the box", "a pair shake hands")[seed % 2]).items()},
     }
-    return {k: v if k == "contact_anchor" else v.float() for k, v in item.items()}
+    return {k: v if k in ("contact_anchor", "text_ids") else v.float() for k, v in item.items()}
 
 
 def fake_batch(batch: int = 2, frames: int = FRAMES, seed: int = 0) -> dict[str, torch.Tensor]:

@@ -47,18 +47,19 @@ def test_items_have_fixed_shapes_and_dtypes(exact):
                 "has_labels": (), "valid": (n,), "noise": (), "kp2d": (n, 2, 22, 2), "kp_mask": (n, 2, 22),
                 "tr2d": (n, 2, 22, 2), "tr_mask": (n, 2, 22), "obj2d": (n, 1, 4), "obj_mask": (n, 1),
                 "objpath2d": (n, 1, 2), "objpath_mask": (n, 1), "contact": (n, 2, 2),
-                "contact_anchor": (n, 2, 2), "camera": (3, 3), "cam_target": (3,)}
+                "contact_anchor": (n, 2, 2), "camera": (3, 3), "cam_target": (3,), "text_ids": (32,), "text_mask": (32,)}
     assert {f.name for f in Controls.__dataclass_fields__.values()} <= set(expected)
     for i in range(len(exact)):
         item = exact[i]
         assert {k: tuple(v.shape) for k, v in item.items()} == expected
         for k, v in item.items():
-            assert v.dtype == (torch.int64 if k == "contact_anchor" else torch.float32), k
+            assert v.dtype == (torch.int64 if k in ("contact_anchor", "text_ids") else torch.float32), k
             assert torch.isfinite(v.float()).all(), k
     real, synth = exact[0], exact[3]
     assert real["obj_present"] == 0 and real["has_labels"] == 0 and real["obj_pose"].abs().sum() == 0
     assert synth["obj_present"] == 1 and synth["has_labels"] == 1
     assert synth["contact"].sum() > 0 and (synth["contact_anchor"] >= 0).any()
+    assert real["text_mask"].sum() >= 3 and synth["text_mask"].sum() >= 3      # every clip has a caption
 
 
 def test_canonical_window_starts_at_origin_and_keeps_the_skeleton(exact):

@@ -67,8 +67,23 @@ def test_conditioning_shapes_and_entity_slots():
     wide = cond(b, T_LAT, V=4)
     assert wide.residual.shape == (2, T_LAT, 4, 128) and wide.residual[:, :, 3].abs().sum() == 0
     assert torch.allclose(wide.residual[:, :, :3], c.residual, atol=1e-6)
-    with pytest.raises(NotImplementedError):
-        SketchConditioner(EncoderConfig(text=True))
+    assert torch.allclose(c.by_type.sum(3), c.residual, atol=1e-5)   # the ControlNet branches' split
+    assert c.text is None                                            # a sketch-only conditioner
+
+
+def test_a_text_conditioner_encodes_the_words_and_nothing_else_changes():
+    from engine.text import tokenize
+    torch.manual_seed(0)
+    sketch_only = SketchConditioner()
+    reading = SketchConditioner(EncoderConfig(text=True))
+    reading.load_state_dict(sketch_only.state_dict(), strict=False)
+    b = consistent_batch(2)
+    tokens = [tokenize("two people carry the box together"), tokenize("")]
+    b.update({k: torch.stack([torch.as_tensor(t[k]) for t in tokens]) for k in tokens[0]})
+    c, plain = reading(b, T_LAT), sketch_only(b, T_LAT)
+    assert c.text.shape == (2, 32, 64) and torch.isfinite(c.text).all()
+    assert c.text_mask[0].sum() == 6 and c.text_mask[1].sum() == 0
+    assert torch.equal(c.residual, plain.residual) and torch.equal(c.embed, plain.embed)
 
 
 def test_empty_storyboard_gives_zero_residual_and_bias():

@@ -230,3 +230,21 @@ def test_baseline_stages_train_on_the_models_runs_and_ship_tied_to_their_bundle(
 def test_baseline_stage_without_its_prerequisite_is_a_clear_error(tmp_path):
     with pytest.raises(StageUnavailable, match="controlnet2. needs stage"):
         train("controlnet2", tiny_config(1), FakeClips(2), runs=tmp_path, progress=False)
+
+
+def test_a_text_model_fine_tunes_from_a_sketch_only_one(tmp_path):
+    """--text --warm-start: the sketch-only weights carry over, the text layers start fresh (the
+    cross-attention at zero, so the first step begins at the sketch-only model)."""
+    data = FakeClips(4)
+    train("vqvae", tiny_config(1), data, runs=tmp_path, progress=False)
+    train("teacher", tiny_config(1), data, runs=tmp_path, progress=False)
+    before = checkpoint.load(tmp_path / "teacher" / "final.pt")["parts"]
+    reading = dataclasses.replace(tiny_config(1), lr=0.0, warm_start=True, model=TINY_MODEL.with_text())
+    train("teacher", reading, data, runs=tmp_path, progress=False)
+    after = checkpoint.load(tmp_path / "teacher" / "final.pt")["parts"]
+    assert any(k.startswith("text.") for k in after["conditioner"])
+    assert any(k.startswith("backbone.text_attn.") for k in after["teacher"])
+    for part in ("teacher", "conditioner"):
+        assert all(torch.allclose(after[part][k].float(), v.float()) for k, v in before[part].items())
+    with pytest.raises(checkpoint.CheckpointError, match="weights this model lacks"):   # and not the other way
+        train("teacher", dataclasses.replace(tiny_config(1), warm_start=True), data, runs=tmp_path, progress=False)
