@@ -277,6 +277,18 @@ class SetTiming(StoryboardCommand):
             setattr(sb, name, getattr(timed, name))
 
 
+class SetText(StoryboardCommand):
+    """What happens, in words (the storyboard's optional text; the model reads it with the sketch)."""
+    touches = ("text",)
+
+    def __init__(self, document, text: str):
+        super().__init__(document, "Change text")
+        self._text = text
+
+    def apply(self, sb):
+        sb.text = self._text
+
+
 # ---- contacts ------------------------------------------------------------------------------------
 class AddContact(StoryboardCommand):
     touches = ("contacts",)

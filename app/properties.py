@@ -1,4 +1,4 @@
-"""The properties panel: the clip's length and frame rate, selection (agent, joint), the selected
+"""The properties panel: the clip's length, frame rate and text (what happens, in words), selection (agent, joint), the selected
 object's type and size, the contact list, and the generation settings with a picker among the
 generated variations.
 It reads the document on every change and writes back through setters and commands."""
@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
-                               QListWidget, QMessageBox, QPushButton, QSpinBox, QVBoxLayout, QWidget)
+                               QLineEdit, QListWidget, QMessageBox, QPushButton, QSpinBox, QVBoxLayout, QWidget)
 
 from engine.objects import DEFAULT_SIZES, OBJECT_TYPES
 from engine.skeleton import JOINT_NAMES
@@ -42,6 +42,12 @@ class PropertiesPanel(QWidget):
         timing.addWidget(self.fps)
         form.addRow("Length", timing)
         form.addRow("", self.duration)
+        self.text = QLineEdit()
+        self.text.setPlaceholderText("What happens, in words (optional)")
+        self.text.setToolTip("e.g. \u201ctwo people carry the box slowly, then the first one lets go\u201d: "
+                             "the model reads it with the sketch (Enter to apply)")
+        self.text.setClearButtonEnabled(True)
+        form.addRow("Text", self.text)
         layout.addWidget(box)
 
         box = QGroupBox("Selection")
@@ -125,6 +131,7 @@ class PropertiesPanel(QWidget):
 
         self.frames.editingFinished.connect(self._apply_length)
         self.fps.editingFinished.connect(self._apply_fps)
+        self.text.editingFinished.connect(self._apply_text)
         self.agent.activated.connect(lambda i: document.select(agent=self.agent.itemData(i)))
         self.joint.activated.connect(lambda i: document.select(joint=self.joint.itemText(i)))
         self.object.activated.connect(lambda i: document.select(object=self.object.itemData(i)))
@@ -173,6 +180,8 @@ class PropertiesPanel(QWidget):
         self.frames.setRange(2, int(MAX_SECONDS * sb.fps))
         self.frames.setValue(sb.length)
         self.duration.setText(f"{sb.length / sb.fps:.2f} s")
+        if not self.text.isModified():      # never overwrite what is being typed (until Enter)
+            self.text.setText(sb.text)
         self.agent.clear()
         for a in sb.agents:
             self.agent.addItem(a.name or a.id, a.id)
@@ -249,6 +258,12 @@ class PropertiesPanel(QWidget):
             self.frames.setValue(sb.length)
             return
         self._doc.undo_stack.push(cmd.SetTiming(self._doc, sb.fps, length))
+
+    def _apply_text(self):
+        text = " ".join(self.text.text().split())
+        self.text.setModified(False)
+        if text != self._doc.storyboard.text:
+            self._doc.undo_stack.push(cmd.SetText(self._doc, text))
 
     def _apply_fps(self):
         fps = round(self.fps.value(), 2)

@@ -131,6 +131,8 @@ def cmd_generate(args) -> int:
     from .sampling.config import SamplerError
     from .storyboard import Storyboard
     sb = Storyboard.load(args.storyboard)
+    if args.text is not None:
+        sb.text = " ".join(args.text.split())
     config = _sampler_config(args)
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
     check_output_path(args.output)                                # fail before generating, not after
@@ -252,6 +254,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--cfg", type=float, default=1.6, help="classifier-free guidance weight (default 1.6)")
     s.add_argument("--method", choices=["student", "teacher-ddpm", "teacher-ddim", "retrieval"], default="student")
+    s.add_argument("--text", metavar="WORDS", help="what happens, in words, instead of the storyboard's own text "
+                                                   "(\"\" for none)")
     s.add_argument("--no-energy", action="store_true", help="no energy guidance (ablation)")
     s.add_argument("--no-ctmc", action="store_true", help="no CTMC phase planning (ablation)")
     s.add_argument("--no-finish", action="store_true",

@@ -26,6 +26,7 @@ def bench_command(quick: bool, output: str, json_path: str | None = None, checkp
     """`baselines`: the trained baselines' file (default: resources/models/baselines.pt where it
     exists, for the shipped bundle); methods whose part is not there are left out, with a note."""
     from ..evaluation.evaluator import DEFAULT_PATH, EvaluatorError, load_evaluator
+    from ..evaluation.text_motion import TEXT_PATH, load_text_embedder
     from ..models.bundle import BASELINES_PATH, BundleError, load_baselines, load_bundle, load_default
     from .report import write
     from .suite import BenchConfig, run_bench
@@ -36,11 +37,12 @@ def bench_command(quick: bool, output: str, json_path: str | None = None, checkp
         if baselines is not None:
             bundle = load_baselines(bundle, baselines)
         evaluator = load_evaluator(DEFAULT_PATH) if DEFAULT_PATH.is_file() else None
+        text_embedder = load_text_embedder(TEXT_PATH) if evaluator is not None and TEXT_PATH.is_file() else None
     except (BundleError, EvaluatorError) as e:
         raise BenchError(str(e)) from None
     markdown = Path(output)
     results = run_bench(bundle, BenchConfig.quick() if quick else BenchConfig.full(), evaluator,
-                        markdown.parent / FIGURES_DIR)
+                        markdown.parent / FIGURES_DIR, text_embedder=text_embedder)
     write(results, command_line(quick, output, json_path, checkpoint, baselines), markdown,
           Path(json_path) if json_path else None)
     print(f"wrote {output}{' and ' + json_path if json_path else ''} in {results['elapsed_s']:.0f} s", file=sys.stderr)

@@ -9,6 +9,8 @@ and drawn paths differ between scenes and stay fixed between runs):
   real          120-frame windows of the held-out CMU salsa take (two people, no object).
   artist        the first few scenes drawn the way artists draw (engine.artist_sketch): by hand,
                 and posed with the canvas's tools; scored against the clean held-out clip.
+  sketch+text   the sketch-only scenes, clean and at noise 0.6, with a caption of the held-out
+                clip as the storyboard's text (engine.synth.captions, seeded by the scene).
 
 Held-out synthesized scenes: the test split of data/synth (engine.dataset.split_files: file
 number mod 1000 below 50) when that folder exists. Without it (a fresh clone), the same scenes
@@ -19,14 +21,17 @@ Held-out real pairs: data/salsa/60_10_61_10.npz, else imported from
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+
+import numpy as np
 
 from ..clip import MotionClip
 from ..dataset import HELD_OUT_SALSA_TAKES, split_files
 from ..sketchify import sketchify
 from ..storyboard import Storyboard
 from ..synth import SCENARIOS, synthesize
+from ..synth.captions import caption
 from ..artist_sketch import hand_drawn, posed_with_tools
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -42,6 +47,7 @@ class ProtocolConfig:
     noise_scenes: int = 10             # scenes re-sketched at each noise level
     noise_levels: tuple[float, ...] = NOISE_LEVELS
     artist_scenes: int = 10            # scenes drawn both ways by engine.artist_sketch
+    text_noise: tuple[float, ...] = (0.0, 0.6)   # noise levels of the sketch+text storyboards
     real_windows: int = 3              # windows of the held-out salsa take
     window: int = 120                  # frames per real window (6 s at 20 fps)
     real_stride: int = 30
@@ -150,4 +156,11 @@ def build_protocols(config: ProtocolConfig = ProtocolConfig()) -> list[Protocol]
                        f"up to 12%, joints 2-3 cm off, spine and collars often unplaced, keys and contact spans "
                        f"a few frames off, strokes of 8-20 points, boxes as four corners; or the canvas's "
                        f"standing template with the end effectors dragged); 3D errors against the clean clip."])
-    return [sketch_only, noise, real, artist]
+    text = Protocol("sketch+text", "Sketch + text (the sketch-only scenes with a caption of the clip as text)",
+                    [BenchItem(i, c.scenario, level, replace(sketchify(c, config.keyframes, level, seed),
+                                                             text=caption(c, np.random.default_rng(seed))), c)
+                     for level in config.text_noise for i, c, seed in chosen],
+                    [f"{len(chosen)} scenes x noise {', '.join(f'{n:g}' for n in config.text_noise)}, each with "
+                     f"a caption written from its held-out clip (engine.synth.captions); R-text@3 and MM Dist "
+                     f"rank the generated motion against those captions (engine.evaluation.text_motion)."])
+    return [sketch_only, noise, real, artist, text]

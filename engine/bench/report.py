@@ -92,6 +92,8 @@ def render(results: dict, command: str, figures_relative_to: Path | None = None)
             out.append(method_table(p["by_method"], labels))
             out += ["", "What an animator looks at (engine.bench.animator; means over the storyboards):", "",
                     method_table(p["by_method"], labels, ANIMATOR_COLUMNS)]
+        if p.get("by_noise") and p["name"] != "noise":
+            out += ["", "Per noise level:", "", _noise_table(p["by_noise"], labels)]
         if p.get("animator_targets"):
             out += ["", _animator_targets_section(p["animator_targets"], labels)]
         if p.get("by_scenario"):

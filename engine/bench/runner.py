@@ -43,6 +43,8 @@ class Method:
 OURS = Method("ours", "Ours", SamplerConfig())
 # The same with three times the steps: what the default's speed costs (engine.sampling.config).
 OURS_30 = Method("ours_30", "Ours, 30 steps", SamplerConfig(steps=30))
+# The same storyboards with their text left out (what the text adds, on the sketch+text protocol).
+OURS_NO_TEXT = Method("ours_no_text", "Ours, text ignored", SamplerConfig(use_text=False))
 # The paper's baseline as it is: the teacher's samples, without our finishing pass.
 TEACHER_DDPM = Method("teacher_ddpm", "COLLAGE Teacher (DDPM-1000)", SamplerConfig(method="teacher-ddpm", finish=False))
 TEACHER_DDIM = Method("teacher_ddim", "COLLAGE Teacher (DDIM-50)",
@@ -74,7 +76,7 @@ SKETCH2ANIM = Method("sketch2anim_int", "Sketch2Anim-INT (DDIM-50) + finishing",
 PREVIEW = Method("ours_preview", "Ours, preview", sampler_config(preview=True))
 FEW_STEP = Method("ours_few_step", "Ours, preview student + full guidance and finishing",
                   replace(sampler_config(), few_step=True, ctmc_every=1))
-ALL_METHODS = (OURS, OURS_30, PREVIEW, FEW_STEP, STEADY, TEACHER_DDPM, TEACHER_DDIM, TEACHER_DDPM_FINISHED, TEACHER_DDIM_FINISHED,
+ALL_METHODS = (OURS, OURS_30, OURS_NO_TEXT, PREVIEW, FEW_STEP, STEADY, TEACHER_DDPM, TEACHER_DDIM, TEACHER_DDPM_FINISHED, TEACHER_DDIM_FINISHED,
                UNTRAINED_FINISHED, RETRIEV_ADAPT, SKETCH2ANIM) + ABLATIONS
 
 

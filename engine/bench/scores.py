@@ -12,7 +12,7 @@ import numpy as np
 
 from .runner import SampleResult
 
-COLUMNS = ("FID", "R-prec@3", "FootSkate", "K2D", "K3D", "T2D", "T3D", "fail@0.2", "fail@0.5", "Obj", "Anc",
+COLUMNS = ("FID", "R-prec@3", "R-text@3", "MM Dist", "FootSkate", "K2D", "K3D", "T2D", "T3D", "fail@0.2", "fail@0.5", "Obj", "Anc",
            "Pen", "Pen>4cm", "ContactF1", "ECE", "Brier", "Diversity")
 
 
@@ -28,18 +28,27 @@ def mean_metrics(samples: list[SampleResult]) -> dict[str, float]:
     return out
 
 
-def evaluator_metrics(evaluator, samples: list[SampleResult], references) -> dict[str, float]:
-    """FID against the references (MotionClips) and storyboard -> motion R-precision top 3."""
+def evaluator_metrics(evaluator, samples: list[SampleResult], references, text_embedder=None) -> dict[str, float]:
+    """FID against the references (MotionClips) and storyboard -> motion R-precision top 3; where
+    every storyboard has text and a text embedder is given, text -> motion R-precision top 3 and MM Dist."""
     from ..evaluation.evaluator import fid, r_precision_top3
     if evaluator is None or len(samples) < 2:
         return {}
     clips = [s.clip for s in samples]
-    return {"FID": fid(evaluator, clips, references),
-            "R-prec@3": r_precision_top3(evaluator, [s.storyboard for s in samples], clips)}
+    out = {"FID": fid(evaluator, clips, references),
+           "R-prec@3": r_precision_top3(evaluator, [s.storyboard for s in samples], clips)}
+    texts = [s.storyboard.text for s in samples]
+    if text_embedder is not None and all(texts):
+        from ..evaluation.text_motion import mm_distance, text_r_precision_top3
+        out.update({"R-text@3": text_r_precision_top3(evaluator, text_embedder, texts, clips),
+                    "MM Dist": mm_distance(evaluator, text_embedder, texts, clips)})
+    return out
 
 
-def by_method(samples: list[SampleResult], evaluator=None, references_by_item=None) -> dict[str, dict[str, float]]:
-    """method key -> mean metrics (+ FID / R-precision when an evaluator is given)."""
+def by_method(samples: list[SampleResult], evaluator=None, references_by_item=None,
+              text_embedder=None) -> dict[str, dict[str, float]]:
+    """method key -> mean metrics (+ FID / R-precision when an evaluator is given, text ones too
+    with a text embedder)."""
     groups: dict[str, list[SampleResult]] = defaultdict(list)
     for s in samples:
         groups[s.method].append(s)
@@ -47,7 +56,8 @@ def by_method(samples: list[SampleResult], evaluator=None, references_by_item=No
     for method, group in groups.items():
         figures = mean_metrics(group)
         if evaluator is not None and references_by_item:
-            figures.update(evaluator_metrics(evaluator, group, [references_by_item[s.item] for s in group]))
+            figures.update(evaluator_metrics(evaluator, group, [references_by_item[s.item] for s in group],
+                                             text_embedder))
         out[method] = figures
     return out
 

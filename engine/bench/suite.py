@@ -21,15 +21,16 @@ from ..baselines.retrieval import default_index
 from . import diagnostics, plots
 from .animator import ANIMATOR_TARGETS
 from .protocol import REPO_ROOT, ProtocolConfig, build_protocols
-from .runner import (ABLATIONS, ALL_METHODS, FEW_STEP, OURS, OURS_30, PREVIEW, RETRIEV_ADAPT, SKETCH2ANIM, STEADY,
+from .runner import (ABLATIONS, ALL_METHODS, FEW_STEP, OURS, OURS_30, OURS_NO_TEXT, PREVIEW, RETRIEV_ADAPT,
+                     SKETCH2ANIM, STEADY,
                      TEACHER_DDIM, TEACHER_DDIM_FINISHED, TEACHER_DDPM, TEACHER_DDPM_FINISHED, RunnerConfig, generate,
                      run_protocol)
 from .scores import by_key, by_method, paired
 from .speed import SpeedConfig, speed_table
 from .targets import PAPER_TARGETS_VS_SKETCH2ANIM, check_targets, paper_ablation_drops, relative_change
 
-TEXT_NOTE = ("Sketch+text: text conditioning is not enabled in this project (storyboards' optional "
-             "text is ignored by the model), so only the sketch-only setting is benchmarked.")
+NO_TEXT_NOTE = ("Sketch+text: this model bundle does not read text (trained without it), so its sketch+text "
+                "rows are sketch-only generation.")
 
 
 @dataclass
@@ -37,8 +38,9 @@ class BenchConfig:
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
     runner: RunnerConfig = field(default_factory=RunnerConfig)
     speed: SpeedConfig = field(default_factory=SpeedConfig)
-    methods: tuple = ALL_METHODS                                   # sketch-only and real protocols
+    methods: tuple = tuple(m for m in ALL_METHODS if m is not OURS_NO_TEXT)   # sketch-only, real, artist
     noise_methods: tuple = (OURS, PREVIEW, TEACHER_DDIM, RETRIEV_ADAPT)
+    text_methods: tuple = (OURS, OURS_NO_TEXT, PREVIEW, TEACHER_DDIM_FINISHED, SKETCH2ANIM, RETRIEV_ADAPT)
     speed_methods: tuple = ALL_METHODS
     scaling_methods: tuple = (OURS, TEACHER_DDIM, TEACHER_DDPM, RETRIEV_ADAPT)
     sweep_cfg: tuple[float, ...] = (1.0, 1.3, 1.6, 2.0, 2.5)     # guidance weights of the sweep
@@ -100,22 +102,24 @@ def _progress(message: str) -> None:
 
 
 def run_bench(bundle, config: BenchConfig, evaluator=None, figures_dir: Path | None = None,
-              log=_progress) -> dict:
-    """Everything the report shows, as plain data. `evaluator`: a loaded MotionEvaluator or None."""
+              log=_progress, text_embedder=None) -> dict:
+    """Everything the report shows, as plain data. `evaluator`: a loaded MotionEvaluator or None;
+    `text_embedder`: engine.evaluation.text_motion's, for R-text@3 and MM Dist, or None."""
     started = time.perf_counter()
-    notes = [TEXT_NOTE]
+    notes = [] if getattr(getattr(bundle, "config", None), "encoder", None) and bundle.config.encoder.text else [NO_TEXT_NOTE]
     if evaluator is None:
         notes.append("FID and R-precision: no trained evaluator (resources/evaluator.pt; train it with "
                      "`python -m engine.evaluation.train_evaluator`), shown as '-'.")
     if not getattr(bundle, "trained", True):
         notes.append("The model bundle is UNTRAINED (freshly initialised weights): quality figures only show "
                      "that the benchmark runs; speed figures are representative of the architecture.")
-    missing = sorted({m.label for m in config.methods + config.speed_methods if not m.available(bundle)})
+    missing = sorted({m.label for m in config.methods + config.text_methods + config.speed_methods
+                      if not m.available(bundle)})
     if missing:
         notes.append(f"Not run: {', '.join(missing)}: no trained weights for this bundle (resources/models/baselines.pt, "
                      "made by scripts/train_baselines.sh).")
     index = None
-    if any(m.sampler is None for m in config.methods + config.noise_methods + config.speed_methods):
+    if any(m.sampler is None for m in config.methods + config.noise_methods + config.text_methods + config.speed_methods):
         index, library = default_index(config.protocol.data_dir, config.retrieval_clips)
         notes.append(f"RetrievAdapt library: {library}.")
     protocols = build_protocols(config.protocol)
@@ -126,12 +130,14 @@ def run_bench(bundle, config: BenchConfig, evaluator=None, figures_dir: Path | N
                  "methods": {m.key: m.label for m in ALL_METHODS}, "notes": notes, "protocols": [], "samples": []}
     all_samples = {}
     for protocol in protocols:
-        methods = config.noise_methods if protocol.name == "noise" else config.methods
+        methods = {"noise": config.noise_methods, "sketch+text": config.text_methods}.get(protocol.name, config.methods)
         samples = run_protocol(bundle, protocol, methods, config.runner, index, log) if protocol.items else []
         all_samples[protocol.name] = samples
         refs = {item.id: item.reference for item in protocol.items}
         entry = {"name": protocol.name, "title": protocol.title, "notes": protocol.notes,
-                 "items": len(protocol.items), "by_method": by_method(samples, evaluator, refs)}
+                 "items": len(protocol.items), "by_method": by_method(samples, evaluator, refs, text_embedder)}
+        if protocol.name == "sketch+text":
+            entry["by_noise"] = _nested(by_key(samples, lambda s: f"{s.noise:g}"))
         if protocol.name == "noise":
             entry["by_noise"] = _nested(by_key(samples, lambda s: f"{s.noise:g}"))
         if protocol.name == "sketch-only":

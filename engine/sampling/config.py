@@ -37,6 +37,7 @@ class SamplerConfig:
     use_ctmc: bool = True           # CTMC mixing of sub-fields and contact gating ("w/o CTMC")
     use_latent: bool = True         # latent grounding E_lat ("w/o latent grounding")
     use_temporal_bias: bool = True  # trajectory attention bias ("w/o temporal bias")
+    use_text: bool = True           # the storyboard's text, for a model that reads it ("sketch only")
     trajectory_only: bool = False   # only the trajectory energy ("trajectory-only")
     ctmc_every: int = 3
     guidance_steps: int = 1         # energy steps on z0_hat per solver step

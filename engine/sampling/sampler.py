@@ -108,6 +108,8 @@ class _Run:
         self.cond = enc.conditioning
         if not self.cfg.use_temporal_bias:
             self.cond = replace(self.cond, temporal_bias=torch.zeros_like(self.cond.temporal_bias))
+        if not self.cfg.use_text:
+            self.cond = self.cond.without_text(torch.ones(k, dtype=torch.bool))
         humans = len(request.storyboard.agents)
         energies = EnergyContext.from_controls(view.storyboard, view.controls, batch=k,
                                                K3D_hat=enc.lifted.keyposes[:, :, :humans],

@@ -397,3 +397,29 @@ def test_p_pins_and_unpins_the_selected_joint(qtbot, window):
     assert window.doc.tool_options.pinned == ("l_ankle",)
     qtbot.keyClick(window.canvas, Qt.Key_P)
     assert window.doc.tool_options.pinned == ()
+
+
+def test_the_storyboard_text_is_typed_undoable_and_reaches_the_generator(qtbot, make_window, monkeypatch):
+    """Typed in Properties (Enter applies), one undo step, saved with the storyboard, and what
+    the sampler is asked to generate."""
+    seen = []
+
+    def record(storyboard, settings):
+        seen.append(storyboard.text)
+        return FakeSampler()(storyboard, settings)
+
+    window = make_window(generate=record)
+    load_sample(window)
+    field = window.properties.text
+    field.setFocus()
+    qtbot.waitUntil(field.hasFocus)
+    qtbot.keyClicks(field, "two people  carry the box slowly")
+    assert window.doc.storyboard.text == ""                       # nothing until Enter
+    qtbot.keyClick(field, Qt.Key_Return)
+    assert window.doc.storyboard.text == "two people carry the box slowly"
+    assert '"text": "two people carry the box slowly"' in window.doc.storyboard.to_json()
+    window.generate()
+    qtbot.waitUntil(lambda: bool(seen))
+    assert seen[0] == "two people carry the box slowly"
+    window.doc.undo_stack.undo()
+    assert window.doc.storyboard.text == "" and field.text() == ""

@@ -42,10 +42,12 @@ def tiny_run(tmp_path_factory):
     methods = (_few_steps(OURS), _few_steps(TEACHER_DDIM), SKETCH2ANIM)   # the bundle has no baselines: left out
     config = BenchConfig(
         protocol=ProtocolConfig(scenarios=("carry_together", "handoff"), per_scenario=1, noise_scenes=1,
-                                artist_scenes=1, noise_levels=(0.4,), real_windows=1, data_dir=data, shared_dir=root / "none"),
+                                artist_scenes=1, noise_levels=(0.4,), text_noise=(0.0, 0.6), real_windows=1,
+                                data_dir=data, shared_dir=root / "none"),
         runner=RunnerConfig(variations=2, diversity_items=1, ddpm_items=0),
         speed=SpeedConfig(repeats=1, ddpm_repeats=1, lengths_s=(2.0, 6.0)),
-        methods=methods, noise_methods=methods[:1], speed_methods=methods, scaling_methods=methods[:1],
+        methods=methods, noise_methods=methods[:1], text_methods=methods[:1], speed_methods=methods,
+        scaling_methods=methods[:1],
         sweep_cfg=(1.0, 2.0), sweep_items=1, trace_methods=methods[:1], trace_items=1,
         stability_methods=methods[:1], stability_items=1, fidelity_items=1)
     results = run_bench(bundle, config, None, root / "figures", log=lambda m: None)
@@ -58,7 +60,7 @@ def test_protocols_without_data_synthesize_reserved_seeds_and_skip_absent_real(t
     protocols = build_protocols(ProtocolConfig(scenarios=("let_go",), per_scenario=1, noise_scenes=1,
                                                artist_scenes=1, noise_levels=(0.2, 0.8), data_dir=tmp_path,
                                                shared_dir=tmp_path))
-    sketch, noise, real, artist = protocols
+    sketch, noise, real, artist, text = protocols
     assert [i.group for i in artist.items] == ["drawn", "posed"]
     assert [i.id for i in sketch.items] == ["let_go/000001"] and sketch.items[0].noise == 0.0
     assert "reserved test seeds" in sketch.notes[0]
@@ -67,6 +69,8 @@ def test_protocols_without_data_synthesize_reserved_seeds_and_skip_absent_real(t
     frames = [[k.frame for k in item.storyboard.keyposes] for item in noise.items]
     assert frames[0] == frames[1]
     assert real.items == [] and "skipped" in real.notes[0]
+    assert [i.noise for i in text.items] == [0.0, 0.6] and text.items[0].storyboard.text
+    assert text.items[0].storyboard.text == text.items[1].storyboard.text        # one caption per scene
 
 
 def test_markdown_has_every_table_and_the_command(tiny_run):
@@ -74,7 +78,8 @@ def test_markdown_has_every_table_and_the_command(tiny_run):
     assert f"`sketch2colab bench --quick -o {root / 'BENCHMARKS.md'} --json {root / 'bench.json'}`" in md
     for heading in ("## Held-out synthesized scenes", "## Noise robustness", "## Held-out real pairs",
                     "## Drawn the way artists draw", "What an animator looks at", "keepable-motion bounds",
-                    "### Ours vs the COLLAGE Teacher", "## Speed", "## Diagnostics", "Sketch+text"):
+                    "### Ours vs the COLLAGE Teacher", "## Speed", "## Diagnostics", "## Sketch + text",
+                    "does not read text", "Per noise level:"):
         assert heading in md
     assert "| Ours | 2 |" in md and "| COLLAGE Teacher (DDIM-50) | 2 |" in md
     assert "Not run: Sketch2Anim-INT (DDIM-50) + finishing: no trained weights" in md
