@@ -24,6 +24,10 @@ from ..sampling.events import GenerationResult, StepEvent
 from ..sampling.output import Output
 from ..sampling.solvers import ddim_step, ddim_times
 
+# Bound on DDIM's clean estimate, in the features' standard deviations (DDPM's clip_denoised: the
+# data's range; 99.9% of normalized training features lie within 7.8). Without it an estimate
+# near pure noise, multiplied by up to 1 / sqrt(alpha_bar) = 150, threw people 100 m away.
+RAW_CLIP = 10.0
 
 def sample_sketch2anim(bundle, request: Request) -> Generator[StepEvent, None, GenerationResult]:
     """The sampler's streaming contract for Sketch2Anim-INT: DDIM over `request.config.steps`
@@ -52,7 +56,7 @@ def sample_sketch2anim(bundle, request: Request) -> Generator[StepEvent, None, G
         x = torch.randn((k, view.length, NUM_HUMANS + 1, model.feature_dim), generator=generator)
         taus = ddim_times(cfg.steps)
         for i in range(cfg.steps):
-            x, x0 = ddim_step(eps, model.denoiser.schedule, x, taus[i], taus[i + 1], clip=None)  # raw features: no latent clip
+            x, x0 = ddim_step(eps, model.denoiser.schedule, x, taus[i], taus[i + 1], clip=RAW_CLIP)
             first = first or time.perf_counter() - start
             shown = x if i == cfg.steps - 1 else x0
 
