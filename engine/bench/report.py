@@ -92,6 +92,9 @@ def render(results: dict, command: str, figures_relative_to: Path | None = None)
             out.append(method_table(p["by_method"], labels))
             out += ["", "What an animator looks at (engine.bench.animator; means over the storyboards):", "",
                     method_table(p["by_method"], labels, ANIMATOR_COLUMNS)]
+            if p.get("reference"):
+                out += ["", "The held-out clips themselves (the motion that was sketched), by the same measures: "
+                        + ", ".join(f"{c} {fmt(p['reference'][c])}" for c in ANIMATOR_COLUMNS if c in p["reference"]) + "."]
         if p.get("by_noise") and p["name"] != "noise":
             out += ["", "Per noise level:", "", _noise_table(p["by_noise"], labels)]
         if p.get("animator_targets"):

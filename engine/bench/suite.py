@@ -19,7 +19,7 @@ import torch
 
 from ..baselines.retrieval import default_index
 from . import diagnostics, plots
-from .animator import ANIMATOR_TARGETS
+from .animator import ANIMATOR_TARGETS, animator_metrics
 from .protocol import REPO_ROOT, ProtocolConfig, build_protocols
 from .runner import (ABLATIONS, ALL_METHODS, FEW_STEP, OURS, OURS_30, OURS_NO_TEXT, PREVIEW, RETRIEV_ADAPT,
                      SKETCH2ANIM, STEADY,
@@ -138,6 +138,8 @@ def run_bench(bundle, config: BenchConfig, evaluator=None, figures_dir: Path | N
                  "items": len(protocol.items), "by_method": by_method(samples, evaluator, refs, text_embedder)}
         if protocol.name == "sketch+text":
             entry["by_noise"] = _nested(by_key(samples, lambda s: f"{s.noise:g}"))
+        if protocol.items and protocol.name != "noise":
+            entry["reference"] = _reference_figures(protocol)
         if protocol.name == "noise":
             entry["by_noise"] = _nested(by_key(samples, lambda s: f"{s.noise:g}"))
         if protocol.name == "sketch-only":
@@ -178,6 +180,15 @@ def _targets(samples, by_method_figures) -> dict:
                                 for metric, paper in paper_ablation_drops().get(m.key, {}).items()}
                         for m in ABLATIONS if m.key in by_method_figures and m.key in paper_ablation_drops()}
     return out
+
+
+def _reference_figures(protocol) -> dict[str, float]:
+    """The animator figures of the held-out clips themselves against their storyboards (means):
+    the scale the generated motion's are read against (a real swing foot pops too)."""
+    from ..metrics import adherence
+    rows = [{**animator_metrics(i.reference, i.storyboard, i.reference),
+             "FootSkate": adherence(i.reference, i.storyboard, i.reference)["FootSkate"]} for i in protocol.items]
+    return {k: float(np.nanmean([r[k] for r in rows if k in r])) for k in rows[0]}
 
 
 def _animator_targets(samples) -> dict:

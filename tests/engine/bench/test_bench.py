@@ -83,6 +83,7 @@ def test_markdown_has_every_table_and_the_command(tiny_run):
         assert heading in md
     assert "| Ours | 2 |" in md and "| COLLAGE Teacher (DDIM-50) | 2 |" in md
     assert "Not run: Sketch2Anim-INT (DDIM-50) + finishing: no trained weights" in md
+    assert "The held-out clips themselves (the motion that was sketched), by the same measures: Pop " in md
     assert "| Sketch2Anim-INT" not in md
     assert "Wall time (s) vs clip length" in md and "2 people + 1 object" in md
     assert "Stroke-nudge stability" in md and "| mean change | median change | max change |" in md
