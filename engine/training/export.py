@@ -33,14 +33,17 @@ def bundle_from_runs(runs: str | Path, config: ModelConfig | None = None) -> Mod
 
 
 def runs_model_config(runs: str | Path) -> ModelConfig:
-    """The model config of the last stage under runs/ that recorded one (ModelConfig() if none)."""
-    for stage in reversed(STAGES):
+    """The model config of the last stage trained under runs/ (stages seeded from a bundle count
+    only when none was trained there; ModelConfig() if none recorded one)."""
+    recorded = []
+    for stage in STAGES:
         path = Path(runs) / stage / "final.pt"
         if path.exists():
-            recorded = checkpoint.load(path).get("model_config")
-            if recorded:
-                return ModelConfig.from_dict(recorded)
-    return ModelConfig()
+            final = checkpoint.load(path)
+            if final.get("model_config"):
+                recorded.append((not final.get("from_bundle", False), ModelConfig.from_dict(final["model_config"])))
+    trained = [cfg for here, cfg in recorded if here] or [cfg for _, cfg in recorded]
+    return trained[-1] if trained else ModelConfig()
 
 
 def runs_from_bundle(bundle: ModelBundle, runs: str | Path) -> list[str]:

@@ -243,6 +243,8 @@ def test_a_text_model_fine_tunes_from_a_sketch_only_one(tmp_path):
     train("teacher", reading, data, runs=tmp_path, progress=False)
     after = checkpoint.load(tmp_path / "teacher" / "final.pt")["parts"]
     assert any(k.startswith("text.") for k in after["conditioner"])
+    from engine.training.export import runs_model_config
+    assert runs_model_config(tmp_path).encoder.text          # what `bundle` builds from these runs
     assert any(k.startswith("backbone.text_attn.") for k in after["teacher"])
     for part in ("teacher", "conditioner"):
         assert all(torch.allclose(after[part][k].float(), v.float()) for k, v in before[part].items())
