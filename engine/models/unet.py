@@ -165,14 +165,12 @@ class TemporalUNet(nn.Module):
         if cfg.text_dim:
             self.text_attn = TextCrossAttention(ch[-1], cfg.text_dim, cfg.heads)
         self.up_blocks, self.upsample = nn.ModuleList(), nn.ModuleList()
-        for i in reversed(range(len(ch))):
-            self.up_blocks.append(ResBlock(c_prev + ch[i], ch[i]))
-            if i > 0:
-                self.upsample.append(TemporalConv(ch[i], ch[i - 1]))
-                c_prev = ch[i - 1]
-        if cfg.down_only:
-            self.up_blocks, self.upsample = nn.ModuleList(), nn.ModuleList()
-        else:
+        if not cfg.down_only:
+            for i in reversed(range(len(ch))):
+                self.up_blocks.append(ResBlock(c_prev + ch[i], ch[i]))
+                if i > 0:
+                    self.upsample.append(TemporalConv(ch[i], ch[i - 1]))
+                    c_prev = ch[i - 1]
             self.out_norm = nn.LayerNorm(ch[0])
             self.output = nn.Linear(ch[0], cfg.latent_dim * cfg.n_heads_out)
             nn.init.zeros_(self.output.weight)
