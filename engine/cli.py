@@ -84,7 +84,7 @@ def cmd_train(args) -> int:
     try:
         train_command(args.stage, args.config, args.data, args.real, args.steps, args.resume, args.runs,
                       args.threads, args.from_bundle, args.batch_size, args.lr, args.minutes, args.workers,
-                      args.artist_share, args.warm_start, args.text)
+                      args.artist_share, args.warm_start, args.text, args.sparse_share)
     except TrainError as e:
         raise UserError(str(e)) from None
     return 0
@@ -225,6 +225,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="share of training storyboards redrawn the way artists draw (engine.artist_sketch)")
     s.add_argument("--warm-start", action="store_true",
                    help="start from the stage's own runs/STAGE/final.pt (fine-tune; with --from-bundle, the shipped one)")
+    s.add_argument("--sparse-share", type=float, default=0.0, metavar="P",
+                   help="share of training storyboards cut to their first and last keyposes (the text says the rest)")
     s.add_argument("--text", action="store_true",
                    help="the model reads the storyboard's text too (trained on the synthesizer's captions)")
     s.add_argument("--runs", default="runs", help="output root (default runs/)")

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import re
 import zlib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -46,6 +46,7 @@ from .io.resample import resample_clip
 from .models.slots import MODEL_FPS, NUM_HUMANS, fixed_controls
 from .objects import NUM_ANCHORS
 from .sketchify import SketchifyConfig, sketchify
+from .storyboard import Storyboard
 from .synth.captions import caption
 from .text import tokenize, with_unknown_words
 
@@ -70,6 +71,8 @@ class DatasetConfig:
     artist_share: float = 0.0         # storyboards redrawn the way artists draw (engine.artist_sketch),
                                       # half by hand, half posed with the canvas's tools
     unknown_word_share: float = 0.1   # caption words replaced by ones the text encoder does not know
+    sparse_share: float = 0.0         # storyboards cut to their first and last keyposes and where the
+                                      # objects start: what happens between is the caption's to say
     seed: int = 0
 
 
@@ -153,6 +156,8 @@ class StoryboardWindows(Dataset):
         storyboard = sketchify(window, keyframes, noise, sketch_seed, config=cfg.sketch)
         if cfg.artist_share > 0 and rng.random() < cfg.artist_share:   # no draw at 0: streams unchanged
             storyboard = redrawn(storyboard, sketch_seed, posed=bool(rng.integers(2)))
+        if cfg.sparse_share > 0 and np.random.default_rng([cfg.seed, self.epoch, index, 2]).random() < cfg.sparse_share:
+            storyboard = sparse(storyboard)
         controls = build_controls(storyboard)
 
         item = _motion_arrays(window)
@@ -162,6 +167,22 @@ class StoryboardWindows(Dataset):
         words = np.random.default_rng([cfg.seed, self.epoch, index, 1])   # its own stream: the sketch's stays
         item.update(with_unknown_words(tokenize(caption(window, words)), cfg.unknown_word_share, words))
         return {k: torch.from_numpy(np.asarray(v)) for k, v in item.items()}
+
+
+def sparse(storyboard: Storyboard) -> Storyboard:
+    """Only each person's first and last keypose and each object's first key: no strokes, no
+    contacts (what a quick thumbnail sketch with a sentence under it gives)."""
+    ends = {frame for agent in storyboard.agents
+            for frame in _first_and_last([k.frame for k in storyboard.keyposes if k.agent == agent.id])}
+    firsts = {o.id: min(k.frame for k in storyboard.object_keys if k.object == o.id)
+              for o in storyboard.objects if any(k.object == o.id for k in storyboard.object_keys)}
+    return replace(storyboard, keyposes=[k for k in storyboard.keyposes if k.frame in ends],
+                   object_keys=[k for k in storyboard.object_keys if firsts.get(k.object) == k.frame],
+                   trajectories=[], object_paths=[], contacts=[])
+
+
+def _first_and_last(frames: list[int]) -> set[int]:
+    return {min(frames), max(frames)} if frames else set()
 
 
 def _checked(clip: MotionClip, path) -> MotionClip:

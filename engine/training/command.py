@@ -21,7 +21,7 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
                   runs: str = "runs", threads: int | None = None, from_bundle: str | None = None,
                   batch_size: int | None = None, lr: float | None = None, minutes: float | None = None,
                   workers: int | None = None, artist_share: float = 0.0, warm_start: bool = False,
-                  text: bool = False) -> dict:
+                  text: bool = False, sparse_share: float = 0.0) -> dict:
     from ..dataset import DatasetConfig, StoryboardWindows, split_files
     cfg = CONFIGS[config]()
     if steps is not None:
@@ -41,8 +41,9 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
         cfg.stage_seconds = 60.0 * minutes
     if workers is not None:
         cfg.num_workers = max(0, workers)
-    if not 0.0 <= artist_share <= 1.0:
-        raise TrainError(f"--artist-share must be between 0 and 1, got {artist_share}")
+    for name, share in (("--artist-share", artist_share), ("--sparse-share", sparse_share)):
+        if not 0.0 <= share <= 1.0:
+            raise TrainError(f"{name} must be between 0 and 1, got {share}")
     cfg.warm_start = warm_start
     if text:
         cfg.model = cfg.model.with_text()
@@ -57,7 +58,7 @@ def train_command(stage: str, config: str = "default", data: list[str] | None = 
         files += split_files(real_dir=folder).train
     if not files:
         raise TrainError("no training clips: pass --data DIR (synthesized clips) and/or --real DIR (imported capture)")
-    dataset = StoryboardWindows(files, DatasetConfig(seed=cfg.seed, artist_share=artist_share))
+    dataset = StoryboardWindows(files, DatasetConfig(seed=cfg.seed, artist_share=artist_share, sparse_share=sparse_share))
     if len(dataset) == 0:
         raise TrainError("the clip folders hold no clip long enough for a training window")
     if from_bundle is not None:

@@ -177,3 +177,15 @@ def test_getitem_is_fast(files):
         ds[i % len(ds)]
     per_item = (time.perf_counter() - start) / (3 * len(ds))
     assert per_item < 0.04, f"{per_item * 1e3:.1f} ms per item"  # ~5 ms unloaded; generous for shared CI
+
+
+def test_a_sparse_storyboard_keeps_the_ends_and_leaves_the_middle_to_the_text(files):
+    from engine.dataset import sparse
+    full = StoryboardWindows(files, DatasetConfig(seed=3))
+    thumbs = StoryboardWindows(files, DatasetConfig(seed=3, sparse_share=1.0))
+    a, b = full[3], thumbs[3]
+    assert torch.equal(a["joints"], b["joints"]) and torch.equal(a["text_ids"], b["text_ids"])
+    assert b["tr_mask"].sum() == 0 and b["contact"].sum() == 0 and b["objpath_mask"].sum() == 0
+    keyed = b["kp_mask"].flatten(1).any(1).nonzero().flatten().tolist()
+    assert len(keyed) == 2 and 0 < b["kp_mask"].sum() < a["kp_mask"].sum()
+    assert torch.equal(full[4]["kp_mask"], StoryboardWindows(files, DatasetConfig(seed=3, sparse_share=0.0))[4]["kp_mask"])

@@ -112,6 +112,12 @@ def test_train_command_refuses_a_non_positive_override(tmp_path, flag):
         train_command("vqvae", data=[str(tmp_path)], runs=str(tmp_path), **{flag: 0})
 
 
+@pytest.mark.parametrize("flag", ["artist_share", "sparse_share"])
+def test_train_command_refuses_a_share_outside_0_1(tmp_path, flag):
+    with pytest.raises(TrainError, match="must be between 0 and 1"):
+        train_command("vqvae", data=[str(tmp_path)], runs=str(tmp_path), **{flag: 1.5})
+
+
 def test_later_stage_without_prerequisite_is_a_clear_error(tmp_path):
     with pytest.raises(StageUnavailable, match="needs stage 'vqvae'"):
         train("teacher", tiny_config(), FakeClips(2), runs=tmp_path, progress=False)

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The text model behind resources/models/default.pt: the sketch-only bundle (scripts/train_default.sh)
+# fine-tuned to read the storyboard's text too (train --text: the synthesizer's captions, 30% of
+# storyboards trained without them, so sketch-only generation stays). The text encoder and the
+# U-Net's bottleneck cross-attention start fresh (at zero: the first step is the sketch-only
+# model), every other weight from the bundle. The teacher's first 3000 steps saw full sketches
+# only and learnt to leave the text aside (the sketch says it all); from there on 30% of the
+# storyboards are thumbnails (first and last keyposes, where the object starts: --sparse-share),
+# whose middle only the text tells. About 1 h on 2 cores. Resumable like train_default.sh.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install.sh
+export PATH="$PWD/.venv/bin:$PATH"
+source scripts/training_data.sh
+BASE=${1:-resources/models/default.pt}
+T=("${DATA_ARGS[@]}" --runs runs_text --text --threads 2 --resume)
+
+stage() {  # stage NAME STEPS [FLAGS...]: runs_text/NAME/done marks it finished (final.pt comes with --from-bundle)
+    local name=$1 steps=$2
+    shift 2
+    [ -f "runs_text/$name/done.$steps" ] || { sketch2colab train "$name" "${T[@]}" --steps "$steps" "$@" && touch "runs_text/$name/done.$steps"; }
+}
+
+stage teacher 3000 --from-bundle "$BASE" --warm-start
+stage teacher 5000 --sparse-share 0.3           # resumes the run above
+stage student1 3000 --warm-start --sparse-share 0.3
+stage student2 600 --sparse-share 0.3
+T=(--data data/synth "${T[@]:${#DATA_ARGS[@]}}")     # the preview learns the student's map: synthesized only
+stage preview 800 --warm-start --sparse-share 0.3
+sketch2colab bundle --runs runs_text -o resources/models/default.pt "${DATA_ARGS[@]}" \
+    --command "bash scripts/train_default.sh; bash scripts/train_text.sh"
