@@ -14,7 +14,8 @@ that keep each person's bone lengths:
    legs (feet.py);
 4. the object as a rigid body that moves only in the hands that hold it, and the arms reaching
    its grips (or the partner's hand) over every contact span (contacts.py); a holder the grip is
-   beyond arm's reach of steps towards it first, before the feet are planted;
+   beyond arm's reach of steps towards it first, before the feet are planted; for an object the
+   storyboard gives no contact, the holds are the generated motion's (inferred.py);
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
    bone lengths (limbs.py).
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
@@ -31,6 +32,7 @@ from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts, step_within_reach
 from .feet import FeetConfig, lock_feet, settle_on_ground
+from .inferred import InferConfig, with_generated_contacts
 from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .timing import retime_to_keys, with_hold_ends
@@ -47,6 +49,7 @@ class FinishConfig:
     feet: bool = True
     warp: WarpConfig = field(default_factory=WarpConfig)
     contact: ContactConfig = field(default_factory=ContactConfig)
+    inferred: InferConfig = field(default_factory=InferConfig)
     foot: FeetConfig = field(default_factory=FeetConfig)
     limbs: LimbConfig = field(default_factory=LimbConfig)
 
@@ -80,7 +83,9 @@ def lasting_as_long(config, fps: float):
 def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig()) -> MotionClip:
     """The clip (people in the storyboard's agent order) with its constraints made exact."""
     config = replace(config, **{part: lasting_as_long(getattr(config, part), clip.fps)
-                                for part in ("warp", "contact", "foot", "limbs")})
+                                for part in ("warp", "contact", "foot", "limbs", "inferred")})
+    if config.contacts:
+        storyboard = with_generated_contacts(clip, storyboard, config.inferred)
     joints = retime_to_keys(np.asarray(clip.joints, float), storyboard)
     storyboard = with_hold_ends(storyboard)
     joints, offsets = consistent_skeleton(joints, storyboard)
