@@ -39,7 +39,7 @@ class BenchConfig:
     runner: RunnerConfig = field(default_factory=RunnerConfig)
     speed: SpeedConfig = field(default_factory=SpeedConfig)
     methods: tuple = tuple(m for m in ALL_METHODS if m is not OURS_NO_TEXT)   # sketch-only, real, artist
-    noise_methods: tuple = (OURS, PREVIEW, TEACHER_DDIM, RETRIEV_ADAPT)
+    noise_methods: tuple = (OURS, PREVIEW, TEACHER_DDIM, RETRIEV_ADAPT, SKETCH2ANIM)
     text_methods: tuple = (OURS, OURS_NO_TEXT, PREVIEW, TEACHER_DDIM_FINISHED, SKETCH2ANIM, RETRIEV_ADAPT)
     speed_methods: tuple = ALL_METHODS
     scaling_methods: tuple = (OURS, TEACHER_DDIM, TEACHER_DDPM, RETRIEV_ADAPT)
