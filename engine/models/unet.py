@@ -8,7 +8,7 @@ entity-graph attention across the V tokens of each latent step, whose logits sub
 lambda_h * pairwise entity distance (metres, from VQ-VAE decode_lowres; lambda_h >= 0 per head).
 Conditioning.residual is projected once and pooled to each level's length, then added after the
 level's residual block on the way down. With `text_dim`, the bottleneck cross-attends to the
-storyboard text (models/text.py). The network only maps tensors to tensors; what the
+storyboard text and the words' mean joins the time embedding (models/text.py). The network only maps tensors to tensors; what the
 output means (noise, velocity sub-fields) belongs to the teacher and the student.
 """
 from __future__ import annotations
@@ -21,7 +21,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from .conditioning import Conditioning
-from .text import TextCrossAttention
+from .text import TextCrossAttention, pooled_text
 
 
 @dataclass
@@ -164,6 +164,9 @@ class TemporalUNet(nn.Module):
         self.mid_attn = EntityTemporalAttention(ch[-1], cfg.heads, cfg.distance_lambda)
         if cfg.text_dim:
             self.text_attn = TextCrossAttention(ch[-1], cfg.text_dim, cfg.heads)
+            self.text_embed = nn.Linear(cfg.text_dim, e)
+            nn.init.zeros_(self.text_embed.weight)
+            nn.init.zeros_(self.text_embed.bias)
         self.up_blocks, self.upsample = nn.ModuleList(), nn.ModuleList()
         if not cfg.down_only:
             for i in reversed(range(len(ch))):
@@ -230,6 +233,8 @@ class TemporalUNet(nn.Module):
                                 embed=z.new_zeros(b, cfg.cond_embed_dim))
         cond = cond.masked()
         emb = emb + self.cond_embed(cond.embed)
+        if cfg.text_dim:
+            emb = emb + self.text_embed(pooled_text(cond.text, cond.text_mask, b, cfg.text_dim, z))
         film = self.film(F.silu(emb)).repeat_interleave(v, 0).split(self.film_sizes, 1)
         lengths = [t]
         for _ in range(len(cfg.channels) - 1):

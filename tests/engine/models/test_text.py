@@ -52,11 +52,11 @@ def test_no_text_dropped_text_and_empty_text_are_the_same_and_words_change_the_o
     assert torch.allclose(everything_dropped, net(z, t, None), atol=1e-6)      # CFG's unconditional pass
 
 
-def test_cross_attention_starts_at_zero():
+def test_the_text_layers_start_at_zero():
     plain = TemporalUNet(UNetConfig(channels=(16, 24, 32, 32), embed_dim=32, heads=2))
     reading = TemporalUNet(UNetConfig(channels=(16, 24, 32, 32), embed_dim=32, heads=2, text_dim=64))
     missing = reading.load_state_dict(plain.state_dict(), strict=False).missing_keys
-    assert missing and all(k.startswith("text_attn.") for k in missing)
+    assert missing and all(k.startswith(("text_attn.", "text_embed.")) for k in missing)
     z, t = torch.randn(2, 30, 3, 32), torch.rand(2)
     cond = _text_conditioning(["two people carry the box", "they shake hands"])
     assert torch.equal(reading(z, t, cond), plain(z, t, cond))
