@@ -10,12 +10,14 @@ cd "$(dirname "$0")/.."
 bash scripts/install.sh
 export PATH="$PWD/.venv/bin:$PATH"
 source scripts/training_data.sh
-ARGS=("${DATA_ARGS[@]}" --runs runs --from-bundle resources/models/default.pt)
+# Its own runs folder, seeded from the shipped bundle (the stages the baselines stand on), and the
+# bundle's model config (--text: the ablation's student reads the text as ours does).
+ARGS=("${DATA_ARGS[@]}" --runs runs_baselines --from-bundle resources/models/default.pt --text)
 
 stage() {  # stage NAME STEPS THREADS
-    [ -f "runs/$1/final.pt" ] || sketch2colab train "$1" "${ARGS[@]}" --steps "$2" --threads "$3" --resume
+    [ -f "runs_baselines/$1/final.pt" ] || sketch2colab train "$1" "${ARGS[@]}" --steps "$2" --threads "$3" --resume
 }
 
 stage sketch2anim 14000 1 & { stage controlnet1 13000 1; stage controlnet2 600 1; } & wait
-sketch2colab bundle --baselines --runs runs -o resources/models/baselines.pt "${DATA_ARGS[@]}" \
+sketch2colab bundle --baselines --runs runs_baselines -o resources/models/baselines.pt "${DATA_ARGS[@]}" \
     --command "bash scripts/train_baselines.sh"
