@@ -16,16 +16,17 @@ def bundle_from_runs(runs: str | Path, config: ModelConfig | None = None) -> Mod
     if config is None:
         config = runs_model_config(runs)
     parts = build_parts(config)
-    done, metrics = [], {}
+    done, metrics, states = [], {}, {}
     for stage in STAGES:
         path = runs / stage / "final.pt"
         if not path.exists():
             continue
         final = checkpoint.load(path)
-        for name, state in final["parts"].items():
-            parts[name].load_state_dict(state)
+        states.update(final["parts"])        # an earlier stage's version (the encoders' conditioner) is not loaded
         done.append(stage)
         metrics[stage] = final.get("metrics", {})
+    for name, state in states.items():
+        parts[name].load_state_dict(state)
     absent = [name for stage, name in OPTIONAL_STAGES.items() if stage not in done]
     required = [stage for stage in STAGES if stage not in OPTIONAL_STAGES]
     return ModelBundle(config, parts, trained=all(stage in done for stage in required),
