@@ -242,8 +242,8 @@ def test_a_text_model_fine_tunes_from_a_sketch_only_one(tmp_path):
     """--text --warm-start: the sketch-only weights carry over, the text layers start fresh (the
     cross-attention at zero, so the first step begins at the sketch-only model)."""
     data = FakeClips(4)
-    train("vqvae", tiny_config(1), data, runs=tmp_path, progress=False)
-    train("teacher", tiny_config(1), data, runs=tmp_path, progress=False)
+    for stage in ("vqvae", "encoders", "teacher"):
+        train(stage, tiny_config(1), data, runs=tmp_path, progress=False)
     before = checkpoint.load(tmp_path / "teacher" / "final.pt")["parts"]
     reading = dataclasses.replace(tiny_config(1), lr=0.0, warm_start=True, model=TINY_MODEL.with_text())
     train("teacher", reading, data, runs=tmp_path, progress=False)
@@ -251,6 +251,8 @@ def test_a_text_model_fine_tunes_from_a_sketch_only_one(tmp_path):
     assert any(k.startswith("text.") for k in after["conditioner"])
     from engine.training.export import runs_model_config
     assert runs_model_config(tmp_path).encoder.text          # what `bundle` builds from these runs
+    bundled = bundle_from_runs(tmp_path)                     # the teacher's conditioner, not the encoders stage's
+    assert torch.equal(bundled.conditioner.text.embed.weight, after["conditioner"]["text.embed.weight"])
     assert any(k.startswith("backbone.text_attn.") for k in after["teacher"])
     for part in ("teacher", "conditioner"):
         assert all(torch.allclose(after[part][k].float(), v.float()) for k, v in before[part].items())
