@@ -106,7 +106,7 @@ def run_bench(bundle, config: BenchConfig, evaluator=None, figures_dir: Path | N
     """Everything the report shows, as plain data. `evaluator`: a loaded MotionEvaluator or None;
     `text_embedder`: engine.evaluation.text_motion's, for R-text@3 and MM Dist, or None."""
     started = time.perf_counter()
-    notes = [] if getattr(getattr(bundle, "config", None), "encoder", None) and bundle.config.encoder.text else [NO_TEXT_NOTE]
+    notes = [] if bundle.config.encoder.text else [NO_TEXT_NOTE]
     if evaluator is None:
         notes.append("FID and R-precision: no trained evaluator (resources/evaluator.pt; train it with "
                      "`python -m engine.evaluation.train_evaluator`), shown as '-'.")

@@ -180,7 +180,6 @@ def test_getitem_is_fast(files):
 
 
 def test_a_sparse_storyboard_keeps_the_ends_and_leaves_the_middle_to_the_text(files):
-    from engine.dataset import sparse
     full = StoryboardWindows(files, DatasetConfig(seed=3))
     thumbs = StoryboardWindows(files, DatasetConfig(seed=3, sparse_share=1.0))
     a, b = full[3], thumbs[3]

@@ -1,6 +1,5 @@
 """Sketch encoders: conditioning shapes and semantics, lifting, along-path phase, the keyframe
 time gate, 2D/3D alignment with InfoNCE, and the latent head f_gamma with L_lat / E_lat."""
-import pytest
 import torch
 
 from engine.camera import StoryboardCamera
