@@ -90,7 +90,7 @@ def _grounded(position: np.ndarray, config: ContactConfig) -> np.ndarray:
     return np.array([position[0], config.rest_height, position[2]])
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+def true_spans(mask: np.ndarray) -> list[tuple[int, int]]:
     """Inclusive [start, end] frame spans where mask (N,) is True."""
     edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
@@ -191,7 +191,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     wrists = joints[:, :, list(HANDS)].reshape(n, 2 * h, 3)
     decoded_yaw = _yaw_of(decoded[:, 3:])
     still_yaw = np.arctan2(np.mean(np.sin(decoded_yaw)), np.mean(np.cos(decoded_yaw)))
-    spans = _runs(held.any(axis=1))
+    spans = true_spans(held.any(axis=1))
     if not spans:  # never held: a still object where it was sketched (else decoded), on the ground
         place = rests[0] if rests[0] is not None else np.median(decoded[:, :3], axis=0)
         return pose_array(np.tile(_grounded(place, config), (n, 1)), np.full(n, still_yaw))
@@ -255,7 +255,7 @@ def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
             hand = 2 * storyboard.agent_index(c.agent) + HAND_NAMES.index(c.hand)
             held[c.start:c.end + 1, hand] = True
             grips[c.start:c.end + 1, hand] = table[o, c.anchor]
-        bounds = [-1, *(f for span in _runs(held.any(axis=1)) for f in span), n]   # gaps between the spans
+        bounds = [-1, *(f for span in true_spans(held.any(axis=1)) for f in span), n]   # gaps between the spans
         rests = [sketched_rest(storyboard, o, a + 1, b - 1) for a, b in zip(bounds[::2], bounds[1::2])]
         out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
                               storyboard.fps, config, rests)

@@ -17,7 +17,7 @@ from ..clip import MotionClip
 from ..skeleton import HANDS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Contact, Storyboard
-from .contacts import object_anchors
+from .contacts import object_anchors, true_spans
 
 
 @dataclass
@@ -56,10 +56,8 @@ def with_generated_contacts(clip: MotionClip, storyboard: Storyboard, config: In
 def _spans(mask: np.ndarray, bridge: int, min_frames: int) -> list[tuple[int, int]]:
     """Runs of True (first, last frame) after closing gaps of at most `bridge` frames, at least
     `min_frames` long."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    runs = list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
     merged: list[list[int]] = []
-    for start, end in runs:
+    for start, end in true_spans(mask):
         if merged and start - merged[-1][1] - 1 <= bridge:
             merged[-1][1] = end
         else:

@@ -262,11 +262,12 @@ def _phase2(name: str, parts: dict, runs: Path, part: str, heads_train: bool) ->
         z0, pos = _latent(vq, batch, g)
         with torch.no_grad():
             enc = cond.encode(batch, z0.shape[1], z0.shape[2])
-            s3d = cond.embed_3d(batch, batch)
         plan = planner(z0, batch, batch["contact"])
         terms, sample, v = student.phase1_losses(stu, teacher, z0, _text_dropped(enc.conditioning, g), pos,
                                                  plan.occupancy.detach(), g)
         if heads_train:
+            with torch.no_grad():
+                s3d = cond.embed_3d(batch, batch)
             terms["ctmc"], _ = ctmc.ctmc_loss(plan, batch["phase"], batch["has_labels"], planner.cfg)
             terms["lat"], _ = alignment.latent_alignment_loss(head, z0, s3d, enc.present, cond.cfg)
         # Total potential V_psi + lambda_lat E_lat at the student's state; raw-space energies
