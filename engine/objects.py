@@ -104,9 +104,9 @@ def default_anchors(kind: str, size: tuple[float, float, float]) -> np.ndarray:
 def local_to_world(p: np.ndarray, pose: np.ndarray) -> np.ndarray:
     """Local points (..., P, 3) under pose (..., 7: xyz + wxyz) -> world (..., P, 3)."""
     R = quat_to_matrix(pose[..., 3:])
-    return np.einsum("...ij,...pj->...pi", R, p) + pose[..., None, :3]
+    return p @ np.swapaxes(R, -1, -2) + pose[..., None, :3]
 
 
 def world_to_local(p: np.ndarray, pose: np.ndarray) -> np.ndarray:
     R = quat_to_matrix(pose[..., 3:])
-    return np.einsum("...ji,...pj->...pi", R, p - pose[..., None, :3])
+    return (p - pose[..., None, :3]) @ R

@@ -46,6 +46,8 @@ class Request:
         """Check that the storyboard and settings can be generated (SamplerError otherwise)."""
         config = config or SamplerConfig()
         config.check()
+        if not storyboard.agents:
+            raise SamplerError("nothing to animate: the storyboard has no people")
         if len(storyboard.agents) > NUM_HUMANS or len(storyboard.objects) > NUM_OBJECTS:
             raise SamplerError(f"the model animates at most {NUM_HUMANS} people and {NUM_OBJECTS} object; the "
                                f"storyboard has {len(storyboard.agents)} people and {len(storyboard.objects)} objects")

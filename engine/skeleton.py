@@ -90,7 +90,7 @@ def forward_kinematics(root: np.ndarray, local_rot: np.ndarray,
     offsets = np.broadcast_to(offsets, local_rot.shape[:-2] + (3,))
     pos = [None] * NUM_JOINTS
     for j, p in enumerate(PARENTS):
-        pos[j] = root if p < 0 else pos[p] + np.einsum("...ij,...j->...i", glob[..., p, :, :], offsets[..., j, :])
+        pos[j] = root if p < 0 else pos[p] + (glob[..., p, :, :] @ offsets[..., j, :, None])[..., 0]
     return np.stack(pos, axis=-2)
 
 
@@ -117,7 +117,7 @@ def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS) -
             glob[j] = parent_glob
             continue
         # Child bone directions expressed in the parent's frame (undo the parent's rotation).
-        target = np.einsum("...ji,...kj->...ki", parent_glob, _child_targets(joints, j))
+        target = _child_targets(joints, j) @ parent_glob
         rest = np.stack([offsets[..., c, :] for c in kids], axis=-2)
         if len(kids) == 1:
             R_local = rotation_between(rest[..., 0, :], target[..., 0, :])

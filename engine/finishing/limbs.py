@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d
+from scipy.ndimage import label, maximum_filter1d
 
 from ..geometry.rotations import matrix_to_6d, normalize, sixd_to_matrix
 from ..skeleton import JOINT_INDEX, forward_kinematics
@@ -85,17 +85,31 @@ def steady_rotations(generated: np.ndarray, root: np.ndarray, rotations: np.ndar
     decoder's) can jolt the chain: the spine's branch fits turned the shoulders 8 cm in a frame
     while the generated ones moved smoothly. Frames whose joints spike more than the generated
     ones by config.tolerance (and `spread` frames around) get rotations smoothed like steady_limbs'
-    knees; the rest are left exactly."""
+    knees; the rest are left exactly. A stretch that spikes more smoothed than it did is given back
+    its own rotations: averaging the rotations of a fast turn (the fit of a real dancer's pelvis
+    turned 230 degrees in three frames) gives no rotation at all, and a foot jumped a metre."""
     n = len(rotations)
     if n < 3:
         return rotations
     wanted = spike(generated)                                                   # (N, 22)
+
+    def excess(r: np.ndarray) -> np.ndarray:   # (N,) how much more each frame spikes than generated
+        return (spike(forward_kinematics(root, r, offsets)) - wanted).max(axis=-1)
+
+    smoothed, before = rotations, excess(rotations)
+    after = before
     for _ in range(config.passes):
-        popping = (spike(forward_kinematics(root, rotations, offsets)) - wanted).max(axis=-1) > config.tolerance
+        popping = after > config.tolerance
         if not popping.any():
             break
         popping = maximum_filter1d(popping, 2 * config.spread + 1)
-        six = smooth_path(matrix_to_6d(rotations).reshape(n, -1), np.where(popping, config.popping_weight, 1.0),
+        six = smooth_path(matrix_to_6d(smoothed).reshape(n, -1), np.where(popping, config.popping_weight, 1.0),
                           config.smooth_frames ** 4)
-        rotations = np.where(popping[:, None, None, None], sixd_to_matrix(six.reshape(n, -1, 6)), rotations)
-    return rotations
+        smoothed = np.where(popping[:, None, None, None], sixd_to_matrix(six.reshape(n, -1, 6)), smoothed)
+        after = excess(smoothed)
+    stretches, count = label(np.any(smoothed != rotations, axis=(1, 2, 3)))
+    for s in range(1, count + 1):
+        near = maximum_filter1d(stretches == s, 3)       # smoothing a stretch changes its neighbours' spikes
+        if after[near].max() > before[near].max() + config.tolerance:
+            smoothed = np.where((stretches == s)[:, None, None, None], rotations, smoothed)
+    return smoothed

@@ -167,10 +167,10 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         hips = joints[:, h, L_HIP] - joints[:, h, R_HIP]
         turn = yaw_matrix(heading_of(np.cross(hips, UP)))                         # (N, 3, 3) body -> world
         moved = posed - posed[:, PELVIS:PELVIS + 1] - body[frames]
-        local = np.einsum("kji,kpj->kpi", turn[frames], moved)                   # world -> body frame
+        local = moved @ turn[frames]                                             # world -> body frame
         root = joints[:, h, PELVIS] + spread(n, frames, posed[:, PELVIS] - joints[frames, h, PELVIS], config.falloff)
         pose = spread(n, frames, local, config.falloff) * closeness_to_keys(n, frames, config.pose_falloff)[:, None, None]
-        target = root[:, None] + body + np.einsum("nij,npj->npi", turn, pose)
+        target = root[:, None] + body + pose @ np.swapaxes(turn, -1, -2)
         out[:, h] = forward_kinematics(root, inverse_kinematics(target, offsets[h]), offsets[h])
         # The refit moved the feet (a keypose's solved bones are not quite the skeleton's): around
         # the keys the legs reach for the warped feet. Further out the refit's own legs stay

@@ -118,13 +118,15 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Smallest rotation taking direction a to direction b. (..., 3), (..., 3) -> (..., 3, 3)."""
     a, b = normalize(a), normalize(b)
     v = np.cross(a, b)
-    c = np.sum(a * b, axis=-1)[..., None, None]
+    c = np.sum(a * b, axis=-1)
+    # Rodrigues without the angle, written out (the finishing's IK calls this most):
+    # R = c I + [v]x + v v^T / (1 + c).
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    zero = np.zeros_like(x)
-    K = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], axis=-1).reshape(v.shape[:-1] + (3, 3))
-    # I + K + K^2 / (1 + c): Rodrigues without the angle (the finishing's IK calls this most).
-    out = np.eye(3) + K + (K @ K) / np.maximum(1.0 + c, 1e-12)
-    anti = c[..., 0, 0] < -1.0 + 1e-6   # near antiparallel: a half turn about an axis across a
+    k = 1.0 / np.maximum(1.0 + c, 1e-12)
+    out = np.stack([c + k * x * x, k * x * y - z, k * x * z + y,
+                    k * x * y + z, c + k * y * y, k * y * z - x,
+                    k * x * z - y, k * y * z + x, c + k * z * z], axis=-1).reshape(v.shape[:-1] + (3, 3))
+    anti = c < -1.0 + 1e-6   # near antiparallel: a half turn about an axis across a
     if np.any(anti):
         helper = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
         out[anti] = axis_angle_to_matrix(np.pi * normalize(np.cross(a, helper)))[anti]
@@ -133,9 +135,7 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def kabsch(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """Rotation R minimising sum |R src_i - dst_i|^2. src, dst: (..., P, 3) -> (..., 3, 3)."""
-    H = np.swapaxes(src, -1, -2) @ dst
-    U, _, Vt = np.linalg.svd(H)
-    d = np.sign(np.linalg.det(np.swapaxes(Vt, -1, -2) @ np.swapaxes(U, -1, -2)))
-    D = np.broadcast_to(np.eye(3), H.shape).copy()
-    D[..., 2, 2] = d
-    return np.swapaxes(Vt, -1, -2) @ D @ np.swapaxes(U, -1, -2)
+    U, _, Vt = np.linalg.svd(np.swapaxes(src, -1, -2) @ dst)
+    V = np.swapaxes(Vt, -1, -2).copy()
+    V[..., :, 2] *= np.sign(np.linalg.det(V) * np.linalg.det(U))[..., None]   # a rotation, never a reflection
+    return V @ np.swapaxes(U, -1, -2)

@@ -13,9 +13,12 @@ PREVIEW_REFINE_STEPS = 0   # energy steps on a preview's final latent after its 
 # Heun steps of the full generation. Measured after finishing on 40 held-out synthesized and 20
 # artist-style storyboards, means of two seeds: 30 -> 10 steps keep K3D (3.4 -> 3.3 cm) and
 # T3D (synthesized 7.1 -> 7.3, artist-style 14.0 -> 14.4 cm); FID rises 0.108 -> 0.123
-# (artist-style 0.455 -> 0.458); a generation takes 0.31 instead of 0.79 s. BENCHMARKS.md shows
-# "Ours, 30 steps" beside the default in every protocol.
-DEFAULT_STEPS = 10
+# (artist-style 0.455 -> 0.458); a generation takes 0.31 instead of 0.79 s. 10 -> 9 steps with
+# one final energy step instead of two (text model; 20 synthesized, 20 artist-style, 40 sketch +
+# text, 3 real storyboards, one run): K3D 3.3 -> 3.4 cm, T3D 6.9 -> 6.8 cm, artist-style Pop
+# 8.3 -> 8.8 cm and lowest foot 5.6 -> 6.0 cm, sketch + text unchanged; 12% less time (issue 20's
+# 20x). BENCHMARKS.md shows "Ours, 30 steps" beside the default in every protocol.
+DEFAULT_STEPS = 9
 
 
 class SamplerError(ValueError):
@@ -49,11 +52,11 @@ class SamplerConfig:
                                     # (STEADY_GUIDANCE_RATE: steadier under edits, more foot skate)
     latent_weight: float = 0.01     # eta_lat, weight of E_lat against the raw energies (f_gamma's
                                     # regression pulls towards an average motion: at 0.05, K3D +0.4 cm)
-    final_refine_steps: int = 2     # extra energy steps on the final latent (physics stage; 4 measured no better)
+    final_refine_steps: int = 1     # extra energy steps on the final latent (physics stage; 2 before the
+                                    # 9 steps, see DEFAULT_STEPS; 4 measured no better than 2)
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
     langevin_step_size: float = 1e-3
     finish: bool = True             # engine.finishing on the final clips ("w/o finishing")
-    light_finish: bool = False      # only keyposes and paths (output.PREVIEW_FINISH), for previews
     check_surrogate: bool = False   # also take the exact gradient through the decoder and report
                                     # its cosine to B_rho's as the energy "surrogate_cosine" (slower)
     threads: int | None = None      # torch threads (None: engine.cpu chooses from the free cores, and
@@ -74,7 +77,9 @@ def sampler_config(*, method: str = "student", steps: int = DEFAULT_STEPS, seed:
                    reserve_cores: float = 0.0) -> SamplerConfig:
     """A SamplerConfig from the choices a person makes (checked: SamplerError on a bad one).
     `preview`: the fast path for motion that follows the pointer: the preview student's few
-    jumps, energy guidance only on the final latent, light finishing (steps and cfg unused)."""
+    jumps, energy guidance only on the final latent (steps and cfg unused). It is finished like
+    the full generation: with keyposes and paths alone (30 ms less) its feet skated in 70% of the
+    frames and the box floated 1.2 m from the hands (20 artist-style storyboards)."""
     config = SamplerConfig(steps=steps, seed=seed, cfg=cfg, method=method, variations=variations,
                            use_energy=energy, use_ctmc=ctmc, finish=finish,
                            guidance_max_rate=STEADY_GUIDANCE_RATE if steady else None,
@@ -82,7 +87,6 @@ def sampler_config(*, method: str = "student", steps: int = DEFAULT_STEPS, seed:
     if preview:
         if method != "student":
             raise SamplerError("a preview is the student's; it has no teacher method")
-        config = replace(config, few_step=True, ctmc_every=2, guidance_start=0.0, final_refine_steps=PREVIEW_REFINE_STEPS,
-                         light_finish=True)
+        config = replace(config, few_step=True, ctmc_every=2, guidance_start=0.0, final_refine_steps=PREVIEW_REFINE_STEPS)
     config.check()
     return config

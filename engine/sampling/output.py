@@ -12,14 +12,11 @@ import numpy as np
 import torch
 
 from ..clip import MotionClip
-from ..finishing import FinishConfig, finish
+from ..finishing import finish
 from ..io.resample import resample_clip, resample_linear
 from ..models.slots import MODEL_FPS
 from ..request import ModelView, Request
 from ..skeleton import HANDS
-
-# A preview's finishing: keyposes and paths made exact (cheap), feet and contacts left as generated.
-PREVIEW_FINISH = FinishConfig(contacts=False, feet=False)
 
 
 class LatentDecoder:
@@ -94,8 +91,7 @@ class Output:
                  for k in range(motion["joints"].shape[0])]
         if not finishing:
             return clips
-        parts = PREVIEW_FINISH if self.config.light_finish else FinishConfig()
-        finished = [finish(clip, self.storyboard, parts) for clip in clips]
+        finished = [finish(clip, self.storyboard) for clip in clips]
         return [replace(c, contact=_hand_contact(c.joints, c.obj_anchors, c.phase)) for c in finished]
 
 

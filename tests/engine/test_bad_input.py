@@ -8,6 +8,9 @@ import pytest
 from engine.camera import StoryboardCamera
 from engine.cli import main
 from engine.clip import ClipError
+from engine.request import Request
+from engine.sampling.config import SamplerError
+from engine.storyboard import Storyboard
 
 EXAMPLE = "resources/examples/box_handoff.json"
 
@@ -53,6 +56,13 @@ def test_a_stroke_of_one_point_is_a_clear_error(tmp_path, capsys):
     code, err, _ = generate(tmp_path, storyboard(one_point), capsys)
     assert code == 2 and "trajectories[0].points" in err and "need at least 2" in err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_a_storyboard_without_people_is_a_clear_error(tmp_path, capsys):
+    code, err, _ = generate(tmp_path, json.loads(Storyboard(length=40).to_json()), capsys)
+    assert code == 2 and "agents" in err and len(err.strip().splitlines()) == 1
+    with pytest.raises(SamplerError, match="no people"):   # built in code, not read from a file
+        Request.build(Storyboard(length=40))
 
 
 def test_a_keyframe_on_the_last_frame_is_honoured(tmp_path, capsys):

@@ -12,7 +12,7 @@ from engine.models.bundle import untrained_bundle
 from engine.request import Request
 from engine.sampling.config import SamplerConfig
 from engine.sampling.sampler import sample
-from engine.storyboard import Storyboard
+from engine.storyboard import Agent, Storyboard
 
 
 @pytest.fixture
@@ -65,7 +65,7 @@ def test_a_busy_program_beside_takes_a_thread(busy_loop):
 def test_a_generation_drops_a_thread_when_a_busy_program_starts():
     """The sampler re-measures between steps: a load that starts mid-run is seen within it."""
     cores = usable_cores()
-    steps = sample(untrained_bundle(), Request.build(Storyboard(length=40), SamplerConfig(steps=200, finish=False)))
+    steps = sample(untrained_bundle(), Request.build(Storyboard(length=40, agents=[Agent("A")]), SamplerConfig(steps=200, finish=False)))
 
     def step_until(done, seconds: float = 20.0) -> int:
         deadline = time.monotonic() + seconds

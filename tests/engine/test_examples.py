@@ -10,7 +10,7 @@ import torch
 from engine.generate import generate
 from engine.metrics import adherence
 from engine.models.bundle import load_default
-from engine.sampling.config import SamplerConfig
+from engine.sampling.config import SamplerConfig, sampler_config
 from engine.skeleton import FEET
 from engine.storyboard import Storyboard
 
@@ -36,6 +36,16 @@ def test_bundled_example_meets_the_targets(bundle, path):
     assert figures["K2D"] < 0.06 and figures["T2D"] < 0.08
     assert figures["Pen"] < 0.02
     assert figures.get("Anc", 0.0) < 0.05
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
+def test_the_preview_of_a_bundled_example_is_finished_like_the_full_motion(bundle, path):
+    """What follows the pointer while an artist drags: feet planted, hands on the object (with
+    keyposes and paths alone, feet skated in 70% of the frames and boxes floated 1.2 m off)."""
+    sb = Storyboard.load(path)
+    figures = adherence(generate(sb, sampler_config(preview=True), bundle).clips[0], sb)
+    assert figures["FootSkate"] < 0.08 and figures.get("Anc", 0.0) < 0.05
+    assert figures["K2D"] < 0.06 and figures["T2D"] < 0.08
 
 
 def test_a_walk_sketched_at_30_fps_steps_as_often_as_at_20(bundle):

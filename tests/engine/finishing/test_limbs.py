@@ -1,5 +1,7 @@
 """Knees and elbows that do not pop (engine/finishing/limbs.py) and corrections blended over time
 (engine/finishing/blend.py)."""
+from pathlib import Path
+
 import numpy as np
 
 from engine.bench.animator import pop
@@ -87,3 +89,15 @@ def test_a_chest_that_jolts_in_the_skeleton_fit_is_steadied_and_the_rest_kept():
     assert pop(forward_kinematics(clean[:, 0], jolted, offsets)[around, None]) > 0.1
     assert pop(out[around, None]) <= pop(fitted[around, None]) + 0.02
     assert np.array_equal(steadied[:30], jolted[:30]) and np.array_equal(steadied[51:], jolted[51:])
+
+
+def test_a_fast_turning_fit_is_never_smoothed_into_a_jump():
+    """One generated person of a real salsa window (spinning_fit.npy: 120 frames of joints, drawn
+    1.1 times the decoder's size) whose pelvis fit turns 230 degrees in three frames: averaging its
+    rotations there gave no rotation at all, and a foot jumped a metre in one frame. Smoothing may
+    not leave the motion popping more than the plain fit does."""
+    joints = np.load(Path(__file__).with_name("spinning_fit.npy")).astype(float)
+    offsets, root = fit_offsets(joints, iterations=1) * 1.1, joints[:, 0] * (1.0, 1.1, 1.0)
+    rotations = inverse_kinematics(joints, offsets)
+    plain = pop(forward_kinematics(root, rotations, offsets)[:, None])
+    assert pop(forward_kinematics(root, steady_rotations(joints, root, rotations, offsets), offsets)[:, None]) <= plain
