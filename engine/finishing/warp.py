@@ -40,13 +40,17 @@ LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera 
 
 @dataclass
 class WarpConfig:
-    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "pose_falloff", "path_smoothing")   # frames at TUNED_FPS
+    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "pose_falloff", "path_smoothing", "heading_smoothing")
+    # (frames at TUNED_FPS)
     falloff: int = 12             # frames over which an offset fades in before the first key / out after the last
     pose_falloff: int = 60        # frames over which a key's pose change (not its place) fades out between
                                   # keys: spread whole over a 66-frame walk, a posed figure's straight template
                                   # knee turned with the body and swung the knee 40 cm in a frame (20 frames
                                   # did as well for pops but moved the pelvis paths 1.3 cm further off)
     path_smoothing: float = 4.0   # frames; Gaussian sigma of the per-frame path offsets
+    heading_smoothing: float = 1.5  # frames; Gaussian sigma of the heading that a key's pose change turns
+                                  # with (a real dancer's spin read off the hips turned 135 degrees in one
+                                  # frame, and a spread pose change swung a wrist 40 cm with it)
     path_passes: int = 2          # smoothing pulls points off the stroke a little; project again
     path_tolerance: float = 0.03  # m in the sketch plane; closer than this to its stroke, a pelvis is
                                   # left alone (a hand-drawn stroke wobbles; the walk should not)
@@ -165,7 +169,8 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
                           for k in keys])                                        # (K, 22, 3)
         body = joints[:, h] - joints[:, h, PELVIS:PELVIS + 1]                     # (N, 22, 3) from the pelvis
         hips = joints[:, h, L_HIP] - joints[:, h, R_HIP]
-        turn = yaw_matrix(heading_of(np.cross(hips, UP)))                         # (N, 3, 3) body -> world
+        heading = gaussian_filter1d(np.unwrap(heading_of(np.cross(hips, UP))), config.heading_smoothing, mode="nearest")
+        turn = yaw_matrix(heading)                                                # (N, 3, 3) body -> world
         moved = posed - posed[:, PELVIS:PELVIS + 1] - body[frames]
         local = moved @ turn[frames]                                             # world -> body frame
         root = joints[:, h, PELVIS] + spread(n, frames, posed[:, PELVIS] - joints[frames, h, PELVIS], config.falloff)

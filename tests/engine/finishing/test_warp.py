@@ -9,6 +9,7 @@ from engine.finishing.keys import key_frames, spread
 from engine.finishing.limbs import LIMBS
 from engine.finishing.warp import follow_paths, sketched_scale, solve_keypose, warp_to_keyposes
 from engine.geometry.polylines import point_polyline_distance
+from engine.geometry.rotations import axis_angle_to_matrix
 from engine.metrics import keypose_errors_2d
 from engine.skeleton import bone_lengths, fit_offsets
 from engine.sketchify import sketchify
@@ -158,3 +159,23 @@ def test_a_keys_pose_change_fades_out_between_keys_far_apart(scene):
     middle = sb.length // 2
     pose = lambda j: j[middle] - j[middle, :, :1]
     assert np.abs(pose(warped) - pose(joints)).max() < 0.03
+
+
+def test_a_key_pose_change_turns_smoothly_with_a_body_whose_hips_jitter(scene):
+    """A body's heading is read off its hips; the fit of a real dancer's spin turned them 135
+    degrees in one frame, and a key's pose change spread in the body's frame swung a wrist 40 cm
+    with it. Smoothed over a few frames, the heading swings the wrists a third as far (33 -> 9 cm
+    beyond their neighbouring frames' moves in this scene)."""
+    clip = scene[0]
+    sb = sketchify(clip, 4, 0.0, 3)                           # keys at 0, 41, 98, 119
+    raised = clip.joints.astype(float)
+    raised[:, :, 16:] += (0.0, 0.2, 0.0)                      # the keys pull the arms 20 cm down
+    jittered = raised.copy()
+    turn = axis_angle_to_matrix(np.array([0.0, np.radians(135.0), 0.0]))
+    for n in range(31, 51, 2):                                # every other frame the hips turn 135 degrees
+        hips = jittered[n, 0, [1, 2]] - jittered[n, 0, 0]
+        jittered[n, 0, [1, 2]] = jittered[n, 0, 0] + hips @ turn.T
+    wrists = slice(25, 57), slice(0, 1), [20, 21]
+    smooth = warp_to_keyposes(*consistent_skeleton(raised), sb)[wrists]
+    shaken = warp_to_keyposes(*consistent_skeleton(jittered), sb)[wrists]
+    assert pop(shaken) < pop(smooth) + 0.1
