@@ -45,7 +45,7 @@ SWIVELS = np.deg2rad(np.arange(-180, 180, 5))  # elbow angles about the shoulder
 @dataclass
 class ContactConfig:
     DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "lift_frames", "smooth_sigma", "reach_smoothing",
-                                            "swivel_sigma")
+                                            "frames_per_metre", "swivel_sigma")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
     lift_frames: int = 6           # frames a resting object eases into the holding hands' fit (and,
                                    # at least, a released one slides to its sketched landing place)
@@ -61,6 +61,7 @@ class ContactConfig:
     reach: float = 0.95            # share of the straight arm's length a holder may reach without stepping
     reach_passes: int = 2          # steps towards the grips (smoothing leaves part of each one undone)
     reach_smoothing: float = 3.0   # frames; Gaussian sigma of a holder's step offsets
+    frames_per_metre: float = 25.0  # frames a holder's step offset takes to grow by a metre away from a key
     grip_rise: float = 0.9         # share of the reach a held grip may lie below or above its shoulder
 
 
@@ -267,7 +268,9 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
     """People moved (whole bodies, horizontally) until each grip they hold, on the object as
     hold_object fits it to their hands now, lies within `config.reach` of the straight arm from
     the shoulder. The move eases in and out over `blend_frames` around each hold and is zero on
-    the person's sketched keyframes, where the sketch says where they stand.
+    the person's sketched keyframes, where the sketch says where they stand; away from them it
+    grows by at most a metre per `frames_per_metre` frames (a hold drawn right after a key far
+    from the object lunged a carrier 76 cm to it and back in a third of a second).
     joints (N, H, 22, 3), obj_pose (N, O, 7) decoded -> joints (N, H, 22, 3)."""
     joints = np.asarray(joints, float).copy()
     n, h = joints.shape[:2]
@@ -277,15 +280,16 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
         return joints
     k = _anchor_table(storyboard).shape[1]
     frames = np.arange(n)
-    free = np.ones((n, h))          # 0 on a person's keyframes, easing to 1 over blend_frames
+    room = np.full((n, h), np.inf)  # how far (m) a person may have moved: 0 on their keyframes
     for a, agent in enumerate(storyboard.agents):
         keys = np.array([key.frame for key in storyboard.keyposes if key.agent == agent.id])
         if len(keys):
-            free[:, a] = smoothstep(np.min(np.abs(frames[:, None] - keys[None]), axis=1) / (config.blend_frames + 1))
+            room[:, a] = np.min(np.abs(frames[:, None] - keys[None]), axis=1) / config.frames_per_metre
     # The object where the hands put it now; refitting it to moved hands would carry it away
     # with the person stepping towards it.
     anchors = object_anchors(hold_object(joints, obj_pose, storyboard, config), storyboard).reshape(n, -1, 3)
     arms = _arm_lengths(joints)                                   # whole-body steps keep them
+    start, moved = joints, np.zeros((n, h, 3))
     for _ in range(config.reach_passes):
         need, weight = np.zeros((n, h, 3)), np.zeros((n, h))
         for c, a, side in grips:
@@ -301,8 +305,10 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
             need[:, a] += w[:, None] * short
             weight[:, a] += w
         step = need / np.maximum(weight, 1.0)[..., None]          # both hands' shortfalls averaged
-        step = gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest") * free[..., None]
-        joints += step[:, :, None]
+        moved += gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
+        length = np.maximum(np.linalg.norm(moved, axis=-1), 1e-9)
+        moved *= np.minimum(1.0, room / length)[..., None]
+        joints = start + moved[:, :, None]
     return joints
 
 

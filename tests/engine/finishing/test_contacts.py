@@ -224,6 +224,9 @@ def test_a_holder_out_of_reach_steps_towards_the_grip_but_not_off_a_keyframe():
     moved = out - joints
     np.testing.assert_allclose(moved[..., 1], 0.0)                       # stepping is horizontal
     np.testing.assert_allclose(moved, moved[:, :, :1].repeat(22, 2))     # whole bodies, no limb edits
+    # Away from a key the step grows by at most a metre per frames_per_metre frames (no lunge).
+    from_key = np.abs(np.arange(len(joints))[:, None] - keys_b[None]).min(1)
+    assert (np.linalg.norm(moved[:, 1, 0], axis=-1) <= from_key / config.frames_per_metre + 1e-9).all()
 
 
 def test_a_shared_hold_sits_within_every_holders_vertical_reach():
