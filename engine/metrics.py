@@ -219,7 +219,8 @@ def r_precision(story_emb: np.ndarray, motion_emb: np.ndarray, top_k: int = 3, b
 
 def adherence(clip, storyboard, reference=None) -> dict[str, float]:
     """How well a generated MotionClip follows its Storyboard; keys only for figures that apply:
-    K2D, T2D (sketch plane); K3D, T3D, Obj (need the reference clip); fail@0.2 / fail@0.5
+    K2D, T2D (sketch plane); K3D, T3D, MPJPE, Pelvis, Obj (need the reference clip: MPJPE and
+    Pelvis are the mean distances of all joints and of the pelvis to it); fail@0.2 / fail@0.5
     (this sequence's 0/1 failure flags on the 3D errors, or the 2D ones without a reference;
     their mean over sequences is the failure rate); Obj2D (projected object centre vs the
     sketched silhouette centre and object path); Anc; Pen and Pen>4cm; FootSkate and
@@ -247,6 +248,8 @@ def adherence(clip, storyboard, reference=None) -> dict[str, float]:
         k3, t3 = keypose_errors_3d(joints, ref, c.kp_mask), trajectory_errors_3d(joints, ref, storyboard)
         put("K3D", k3)
         put("T3D", t3)
+        put("MPJPE", np.linalg.norm(joints - ref, axis=-1))                    # every joint, every frame
+        put("Pelvis", np.linalg.norm(joints[:, :, 0] - ref[:, :, 0], axis=-1))
         constrained = np.concatenate([k3, t3])
     if constrained.size:
         out.update(failure_rates([constrained]))

@@ -12,8 +12,8 @@ import numpy as np
 
 from .runner import SampleResult
 
-COLUMNS = ("FID", "R-prec@3", "R-text@3", "MM Dist", "FootSkate", "K2D", "K3D", "T2D", "T3D", "fail@0.2", "fail@0.5", "Obj", "Anc",
-           "Pen", "Pen>4cm", "ContactF1", "ECE", "Brier", "Diversity")
+COLUMNS = ("FID", "R-prec@3", "R-text@3", "MM Dist", "FootSkate", "K2D", "K3D", "T2D", "T3D", "MPJPE", "Pelvis", "fail@0.2",
+           "fail@0.5", "Obj", "Anc", "Pen", "Pen>4cm", "ContactF1", "ECE", "Brier", "Diversity")
 
 
 def mean_metrics(samples: list[SampleResult]) -> dict[str, float]:

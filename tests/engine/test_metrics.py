@@ -71,6 +71,7 @@ def test_adherence_known_values():
     assert got["T2D"] == pytest.approx(0.2)
     assert got["K3D"] == pytest.approx(0.3)
     assert got["T3D"] == pytest.approx(0.3)
+    assert got["MPJPE"] == pytest.approx(0.3) and got["Pelvis"] == pytest.approx(0.3)
     assert got["fail@0.2"] == 1.0 and got["fail@0.5"] == 0.0
     assert got["Pen"] == 0.0 and got["FootSkate"] == 0.0
     assert "Anc" not in got and "Obj" not in got

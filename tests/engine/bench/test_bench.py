@@ -102,6 +102,9 @@ def test_json_figures_are_finite(tiny_run):
         assert figures["n"] == 2 and "FID" not in figures
     real = data["protocols"][2]["by_method"]["ours"]
     assert real["n"] == 1 and "Obj" not in real and "ContactF1" not in real
+    assert 0 < real["Pelvis"] < 10 and 0 < real["MPJPE"] < 10                # both measured, in metres
+    bounds = data["protocols"][2]["animator_targets"]["ours"]               # issue 18's real-motion bounds
+    assert bounds["Pelvis"]["target"] == 0.15 and bounds["MPJPE"]["n"] == 1
     speed = data["speed"]["per_method"]
     assert speed["ours"]["network_evals"] == 4 and speed["teacher_ddim"]["network_evals"] == 2
     assert all(math.isfinite(speed[m]["wall_s"]) and speed[m]["wall_s"] > 0 for m in speed)
