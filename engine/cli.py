@@ -149,6 +149,8 @@ def cmd_generate(args) -> int:
     except ValueError as e:  # e.g. --object-csv for a storyboard without an object
         raise UserError(str(e)) from None
     print(f"wrote {', '.join(str(p) for p in written)}", file=sys.stderr)
+    for note in result.notes:
+        print(f"note: {note}", file=sys.stderr)
     print_summary(summary(result, sb, args.method))
     return 0
 

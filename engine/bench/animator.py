@@ -19,12 +19,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..clip import MotionClip
+from ..finishing.misses import GRIP_TOLERANCE, hold_gaps
 from ..metrics import frame_penetration
-from ..skeleton import FEET, HANDS, JOINT_INDEX, PARENTS
-from ..storyboard import HANDS as HAND_NAMES
+from ..skeleton import FEET, JOINT_INDEX, PARENTS
 from ..storyboard import Storyboard
 
-ANIMATOR_TARGETS = {"Pop": 0.05, "Grip": 0.03, "Wrist@key": 0.08, "FootFloat": 0.06, "FootSkate": 0.03,
+ANIMATOR_TARGETS = {"Pop": 0.05, "Grip": GRIP_TOLERANCE, "Wrist@key": 0.08, "FootFloat": 0.06, "FootSkate": 0.03,
                     "PenMax": 0.02}
 # Issue 18's first bounds on real held-out windows (engine.metrics.adherence's figures, m);
 # the goal beyond them is 0.10 and 0.15.
@@ -59,16 +59,7 @@ def pop(joints: np.ndarray) -> float:
 
 def grip(clip: MotionClip, storyboard: Storyboard) -> float:
     """95th percentile over (frame, hand) pairs in object contact spans of wrist-to-anchor distance."""
-    if clip.obj_anchors is None:
-        return 0.0
-    gaps = []
-    for c in storyboard.contacts:
-        if c.object is None:
-            continue
-        h, side, o = storyboard.agent_index(c.agent), HAND_NAMES.index(c.hand), storyboard.object_index(c.object)
-        span = slice(c.start, c.end + 1)
-        wrist = clip.joints[span, h, HANDS[side]]
-        gaps.append(np.linalg.norm(wrist - clip.obj_anchors[span, o, c.anchor], axis=-1))
+    gaps = [gap for _, _, gap in hold_gaps(clip, storyboard)]
     return float(np.percentile(np.concatenate(gaps), 95)) if gaps else 0.0
 
 

@@ -41,6 +41,8 @@ class GenerationResult:
     first_step_s: float          # time from the call to the first StepEvent
     network_evals: int
     stage_s: dict[str, float] = field(default_factory=dict)   # where the time went (StageClock)
+    notes: list[str] = field(default_factory=list)   # what finishing could not make exact, for the
+                                                     # artist (engine.finishing.misses), variation 1
 
 
 class StageClock:

@@ -36,6 +36,7 @@ from typing import Generator, Protocol
 import torch
 
 from ..cpu import ThreadBudget
+from ..finishing.misses import missed_holds
 from ..models.preview import preview_times
 from ..request import Request
 from .cfg import ClassifierFreeGuidance
@@ -143,9 +144,10 @@ class _Run:
             motion = self.decode(z0)
         with self.clock("finishing"):
             clips = self.output.final_clips(motion, self.occupancy)
+        notes = missed_holds(clips[0], self.output.storyboard) if self.cfg.finish else []
         return GenerationResult(clips=clips, wall_time_s=time.perf_counter() - self.start,
                                 first_step_s=self.first_step or 0.0, network_evals=self.evals,
-                                stage_s=dict(self.clock.seconds))
+                                stage_s=dict(self.clock.seconds), notes=notes)
 
     # ---- student: guided Heun ODE, or the preview student's jumps ------------------------------
     def _velocity_field(self, entity_pos: torch.Tensor | None):

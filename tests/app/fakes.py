@@ -56,6 +56,7 @@ class FakeSampler:
     fail_at: int | None = None
     closed: list = field(default_factory=list)     # True once a stream was closed early
     yielded: list = field(default_factory=list)    # step indices in the order they were yielded
+    notes: list = field(default_factory=list)      # the result's notes (what finishing could not do)
 
     def __call__(self, storyboard: Storyboard, settings: GenerationSettings):
         started = time.perf_counter()
@@ -77,7 +78,8 @@ class FakeSampler:
             self.closed.append(True)
             raise
         clips = [walking_clip(storyboard.length, storyboard.fps) for _ in range(settings.variations)]
-        return GenerationResult(clips, time.perf_counter() - started, first or 0.0, settings.steps)
+        return GenerationResult(clips, time.perf_counter() - started, first or 0.0, settings.steps,
+                                notes=list(self.notes))
 
 
 

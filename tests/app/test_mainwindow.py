@@ -149,6 +149,17 @@ def test_cancel_stops_within_one_step(qtbot, make_window, dialogs):
     assert window.doc.clip is None and dialogs.errors == []
 
 
+def test_a_hold_finishing_could_not_reach_is_told_after_generating(qtbot, make_window):
+    note = "A's left hand misses the box's grip by up to 40 cm (frames 3-9): move A closer there"
+    window = make_window(generate=FakeSampler(notes=[note, "B's right hand misses ..."]))
+    load_sample(window)
+    window.doc.set_settings(window.doc.settings.__class__(steps=2))
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
+        window.act_generate.trigger()
+    message = window.statusBar().currentMessage()
+    assert message.startswith("Generated 1 variation") and f"{note} (and 1 more)." in message
+
+
 def test_sampler_error_becomes_a_dialog(qtbot, make_window, dialogs):
     window = make_window(generate=FakeSampler(fail_at=2))
     load_sample(window)
