@@ -17,7 +17,8 @@ import torch
 
 from ..atomic import write_text
 from ..dataset import DatasetConfig, StoryboardWindows, split_files
-from ..models.bundle import DEFAULT_PATH, ModelBundle, build_parts, load_baselines, load_bundle, save_baselines
+from ..models.bundle import (BASELINE_PARTS, DEFAULT_PATH, ModelBundle, build_parts, load_baselines, load_bundle,
+                             save_baselines)
 from ..models.ctmc import contact_timing_error, phase_accuracy
 from ..models.surrogate import gradient_cosine, random_cotangents
 from . import checkpoint
@@ -114,7 +115,9 @@ def export_baselines(runs: str | Path, output: str | Path, data: list[str], real
         "",
         f"`{output.name}`: {card['size_mb']} MB (half precision): {', '.join(card['parts'])}. Not part of the product: "
         "`sketch2colab bench` lays them over the bundle they were trained with (`load_baselines` leaves out a "
-        "baseline whose bundle parts changed since: each records their weights' SHA-256).",
+        "baseline whose bundle parts changed since: each records their weights' SHA-256)."
+        + "".join(f" Not in it yet: {name} (its stages have no final weights under {Path(runs)})."
+                  for name in BASELINE_PARTS if name not in parts),
         "",
         "- sketch2anim: Sketch2Anim-INT (engine/models/sketch2anim.py, engine/baselines/sketch2anim.py).",
         "- controlnet_student: the parallel-ControlNets ablation's student (engine/models/controlnet.py), "
