@@ -32,10 +32,9 @@ def bench_command(quick: bool, output: str, json_path: str | None = None, checkp
     from .suite import BenchConfig, run_bench
     try:
         bundle = load_bundle(checkpoint) if checkpoint else load_default()
-        if baselines is None and checkpoint is None and BASELINES_PATH.is_file():
-            baselines = str(BASELINES_PATH)
-        if baselines is not None:
-            bundle = load_baselines(bundle, baselines)
+        found = str(BASELINES_PATH) if baselines is None and checkpoint is None and BASELINES_PATH.is_file() else None
+        if (baselines or found) is not None:
+            bundle = load_baselines(bundle, baselines or found)
         evaluator = load_evaluator(DEFAULT_PATH) if DEFAULT_PATH.is_file() else None
         text_embedder = load_text_embedder(TEXT_PATH) if evaluator is not None and TEXT_PATH.is_file() else None
     except (BundleError, EvaluatorError) as e:
