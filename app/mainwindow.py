@@ -476,9 +476,10 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
                                          "the full generation follows the release.", 4000)
             return
         more = f" (and {len(result.notes) - 1} more)" if len(result.notes) > 1 else ""
+        note = f" {result.notes[0]}{more}." if result.notes else ""   # what finishing could not reach
         self.statusBar().showMessage(
             f"Generated {count} variation{'s' * (count != 1)} in {result.wall_time_s:.1f} s "
-            f"(first step after {result.first_step_s:.2f} s)." + "".join(f" {n}{more}." for n in result.notes[:1]), 15000)
+            f"(first step after {result.first_step_s:.2f} s).{note}", 15000)
 
     # ---- closing ---------------------------------------------------------------------------------
     def closeEvent(self, event) -> None:

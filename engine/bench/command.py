@@ -32,9 +32,9 @@ def bench_command(quick: bool, output: str, json_path: str | None = None, checkp
     from .suite import BenchConfig, run_bench
     try:
         bundle = load_bundle(checkpoint) if checkpoint else load_default()
-        found = str(BASELINES_PATH) if baselines is None and checkpoint is None and BASELINES_PATH.is_file() else None
-        if (baselines or found) is not None:
-            bundle = load_baselines(bundle, baselines or found)
+        shipped = str(BASELINES_PATH) if checkpoint is None and BASELINES_PATH.is_file() else None
+        if baselines or shipped:   # the shipped file is found, not written into the report's command
+            bundle = load_baselines(bundle, baselines or shipped)
         evaluator = load_evaluator(DEFAULT_PATH) if DEFAULT_PATH.is_file() else None
         text_embedder = load_text_embedder(TEXT_PATH) if evaluator is not None and TEXT_PATH.is_file() else None
     except (BundleError, EvaluatorError) as e:

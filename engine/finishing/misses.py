@@ -42,6 +42,7 @@ def missed_holds(clip: MotionClip, storyboard: Storyboard, tolerance: float = GR
         if len(short):
             runs = np.split(short, np.flatnonzero(np.diff(short) > 1) + 1)
             where = ", ".join(f"{r[0]}" if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
+            frames_word = "frame" if len(short) == 1 else "frames"
             notes.append(f"{c.agent}'s {c.hand} hand misses the {c.object}'s grip by up to {100 * gap.max():.0f} cm "
-                         f"({'frame' if len(short) == 1 else 'frames'} {where}): move {c.agent} closer there, or the hold's start or end")
+                         f"({frames_word} {where}): move {c.agent} closer there, or the hold's start or end")
     return notes

@@ -16,8 +16,8 @@ PREVIEW_REFINE_STEPS = 0   # energy steps on a preview's final latent after its 
 # (artist-style 0.455 -> 0.458); a generation takes 0.31 instead of 0.79 s. 10 -> 9 steps with
 # one final energy step instead of two (text model; 20 synthesized, 20 artist-style, 40 sketch +
 # text, 3 real storyboards, one run): K3D 3.3 -> 3.4 cm, T3D 6.9 -> 6.8 cm, artist-style Pop
-# 8.3 -> 8.8 cm and lowest foot 5.6 -> 6.0 cm, sketch + text unchanged; 12% less time (issue 20's
-# 20x). BENCHMARKS.md shows "Ours, 30 steps" beside the default in every protocol.
+# 8.3 -> 8.8 cm and lowest foot 5.6 -> 6.0 cm, sketch + text unchanged; 18% less CPU time per
+# generation (issue 20's 20x). BENCHMARKS.md shows "Ours, 30 steps" beside the default in every protocol.
 DEFAULT_STEPS = 9
 
 
