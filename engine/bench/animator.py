@@ -20,6 +20,7 @@ import numpy as np
 
 from ..clip import MotionClip
 from ..finishing.misses import GRIP_TOLERANCE, hold_gaps
+from ..finishing.steady import frame_pops
 from ..metrics import frame_penetration
 from ..skeleton import FEET, JOINT_INDEX, PARENTS
 from ..storyboard import Storyboard
@@ -51,10 +52,7 @@ def pop(joints: np.ndarray) -> float:
     and of the spike |x_n - (x_n-1 + x_n+1) / 2| (smooth motion: a few millimetres)."""
     if len(joints) < 4:
         return 0.0
-    step = np.linalg.norm(np.diff(joints, axis=0), axis=-1)                  # (N-1, H, 22)
-    jump = step[1:-1] - np.maximum(step[:-2], step[2:])
-    spike = np.linalg.norm(joints[1:-1] - 0.5 * (joints[:-2] + joints[2:]), axis=-1)
-    return float(max(jump.max(), spike.max(), 0.0))
+    return float(max(frame_pops(joints.reshape(len(joints), -1, 3)).max(), 0.0))
 
 
 def grip(clip: MotionClip, storyboard: Storyboard) -> float:

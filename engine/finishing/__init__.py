@@ -15,9 +15,12 @@ that keep each person's bone lengths:
 4. the object as a rigid body that moves only in the hands that hold it, and the arms reaching
    its grips (or the partner's hand) over every contact span (contacts.py); a holder the grip is
    beyond arm's reach of steps towards it first, before the feet are planted; for an object the
-   storyboard gives no contact, the holds are the generated motion's (inferred.py);
+   storyboard gives no contact, the holds are the generated motion's (inferred.py); hands out of
+   a hold pushed out of the objects they sink into (clearance.py);
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
-   bone lengths (limbs.py).
+   bone lengths (limbs.py);
+6. the whole body smoothed where it still pops, what the stages above made exact held
+   (steady.py).
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
 """
 from __future__ import annotations
@@ -30,11 +33,13 @@ from ..clip import MotionClip
 from ..geometry.rotations import matrix_to_6d
 from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
+from .clearance import clear_hands
 from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts, step_within_reach
 from .feet import FeetConfig, lock_feet, settle_on_ground
 from .inferred import InferConfig, with_generated_contacts
 from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
+from .steady import SteadyConfig, steady_body
 from .timing import retime_to_keys, with_hold_ends
 from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
 
@@ -52,6 +57,7 @@ class FinishConfig:
     inferred: InferConfig = field(default_factory=InferConfig)
     foot: FeetConfig = field(default_factory=FeetConfig)
     limbs: LimbConfig = field(default_factory=LimbConfig)
+    steady: SteadyConfig = field(default_factory=SteadyConfig)
 
 
 def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -83,7 +89,7 @@ def lasting_as_long(config, fps: float):
 def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig()) -> MotionClip:
     """The clip (people in the storyboard's agent order) with its constraints made exact."""
     config = replace(config, **{part: lasting_as_long(getattr(config, part), clip.fps)
-                                for part in ("warp", "contact", "foot", "limbs", "inferred")})
+                                for part in ("warp", "contact", "foot", "limbs", "steady", "inferred")})
     if config.contacts:
         storyboard = with_generated_contacts(clip, storyboard, config.inferred)
     joints = retime_to_keys(np.asarray(clip.joints, float), storyboard)
@@ -104,7 +110,9 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
     if config.contacts:
         joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact, kw.get("obj_pose"))
-    joints = steady_limbs(joints, config.limbs)
+    if config.contacts and "obj_pose" in kw:
+        joints = clear_hands(joints, kw["obj_pose"].astype(float), storyboard, config.contact.clear_frames)
+    joints = steady_body(steady_limbs(joints, config.limbs), offsets, storyboard, config.steady)
     rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
                    bone_offsets=offsets.astype(np.float32), **kw)

@@ -45,7 +45,7 @@ SWIVELS = np.deg2rad(np.arange(-180, 180, 5))  # elbow angles about the shoulder
 @dataclass
 class ContactConfig:
     DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "lift_frames", "smooth_sigma", "reach_smoothing",
-                                            "frames_per_metre", "swivel_sigma")
+                                            "frames_per_metre", "swivel_sigma", "clear_frames")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
     lift_frames: int = 6           # frames a resting object eases into the holding hands' fit (and,
                                    # at least, a released one slides to its sketched landing place)
@@ -58,6 +58,7 @@ class ContactConfig:
     swivel_change_cost: float = 0.05   # m of penetration worth a one-radian turn between frames
                                        # (squared: a turn spread over frames costs less)
     swivel_sigma: float = 1.5      # frames at TUNED_FPS; smoothing of the chosen swivel angles
+    clear_frames: float = 1.5      # time scale over which a free hand's push out of an object eases (clearance.py)
     reach: float = 0.95            # share of the straight arm's length a holder may reach without stepping
     reach_passes: int = 2          # steps towards the grips (smoothing leaves part of each one undone)
     reach_smoothing: float = 3.0   # frames; Gaussian sigma of a holder's step offsets

@@ -1,0 +1,67 @@
+"""Hands that never go through the objects.
+
+The decoder does not know where finishing puts the object, and a hand blending onto its grip
+before a hold, or off it after, travels from where the generated hand was: often inside the box
+(a wrist 15 cm deep at the start of a hand-off, 8 cm after a set-down). Here a wrist that sinks
+into an object further than its own radius is pushed out along the surface normal by as much as
+it sinks; the push eases in and out over the frames around (none while the hand holds: it is on
+its grip), and the elbow goes to the place nearest its own that keeps both arm bones' lengths.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..body import JOINT_RADII
+from ..geometry.rotations import quat_to_matrix
+from ..objects import ObjectSpec, world_to_local
+from ..storyboard import HANDS as HAND_NAMES
+from ..storyboard import Storyboard
+from .blend import smooth_correction
+from .limbs import LIMBS, on_circle
+
+ARMS = LIMBS[2:]     # (shoulder, elbow, wrist) left, right
+STEP = 1e-3          # m; the finite difference of the surface normal
+
+
+def _outward(points: np.ndarray, obj_pose: np.ndarray, spec: ObjectSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance (N, P) of points (N, P, 3) to an object at obj_pose (N, 7), and the world
+    direction (N, P, 3) in which it grows fastest (the outward surface normal)."""
+    local = world_to_local(points, obj_pose)
+    sdf = spec.sdf_local(local)
+    grad = np.stack([spec.sdf_local(local + STEP * axis) - sdf for axis in np.eye(3)], -1) / STEP
+    grad /= np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-9)
+    return sdf, grad @ np.swapaxes(quat_to_matrix(obj_pose[:, 3:]), -1, -2)
+
+
+def clear_hands(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,
+                smooth_frames: float = 1.5) -> np.ndarray:
+    """joints (N, H, 22, 3), obj_pose (N, O, 7) -> joints with no wrist deeper in an object than
+    its radius allows; only wrists and elbows move, bone lengths kept. The push is exact where a
+    wrist sinks and eases in and out over about `smooth_frames` frames around (blend.py)."""
+    out = np.array(joints, float)
+    specs = [o.spec for o in storyboard.objects]
+    for side, (shoulder, elbow, wrist) in enumerate(ARMS):
+        holding = np.zeros(out.shape[:2], bool)                                   # (N, H) on a grip or a hand
+        for c in storyboard.contacts:
+            if c.hand == HAND_NAMES[side]:
+                holding[c.start:c.end + 1, storyboard.agent_index(c.agent)] = True
+        radius = JOINT_RADII[wrist]
+        push = np.zeros(out.shape[:2] + (3,))                                   # (N, H, 3)
+        for o, spec in enumerate(specs):
+            sdf, normal = _outward(out[:, :, wrist] + push, obj_pose[:, o], spec)     # (N, H), (N, H, 3)
+            push += np.maximum(radius - sdf, 0.0)[..., None] * normal
+        push[holding] = 0.0
+        sunk = np.any(push != 0.0, axis=-1)                                        # (N, H)
+        for h in np.flatnonzero(sunk.any(axis=0)):
+            push[:, h] = smooth_correction(push[:, h], sunk[:, h] | holding[:, h], smooth_frames ** 4)
+        moved = np.any(push != 0.0, axis=-1)
+        if not moved.any():
+            continue
+        root, mid, end = out[:, :, shoulder][moved], out[:, :, elbow][moved], out[:, :, wrist][moved]
+        upper, lower = np.linalg.norm(mid - root, axis=-1), np.linalg.norm(end - mid, axis=-1)
+        reach = end + push[moved] - root
+        dist = np.maximum(np.linalg.norm(reach, axis=-1), 1e-9)
+        goal = root + reach * (np.minimum(dist, upper + lower) / dist)[:, None]
+        out[:, :, elbow][moved] = on_circle(root, goal, upper, lower, mid)
+        out[:, :, wrist][moved] = goal
+    return out

@@ -1,0 +1,155 @@
+"""A whole body that never pops: the last pass of finishing.
+
+Every stage before this one leaves some one-frame pops (the decoder's gait, a warp's or a reach's
+edit meeting the next stage's), and the limb pass only smooths knees and elbows that pop more than
+their ends. Here, where any joint of a person pops (lies off the middle of its neighbouring frames
+by more than `tolerance`, or jumps further in a frame than in both neighbouring ones), every joint
+that is not held is pulled towards its path smoothed over time; the bones are given back their
+lengths (held joints fixed), the pose put back on the person's skeleton by IK, and held hands and
+feet back where they were. Held is what the storyboard and the stages before made exact: the
+placed joints at their keys, the wrists in their holds, joints standing still, feet near the floor
+(smoothed, a foot would travel before it lifts, and slide). A stretch that would pop more is left
+as it was; so is a frame whose held hand the smoothed body could no longer reach.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from scipy.ndimage import label, maximum_filter1d
+
+from ..skeleton import ANKLES, CHILDREN, FEET, HANDS, PARENTS, forward_kinematics, inverse_kinematics
+from ..storyboard import HANDS as HAND_NAMES
+from ..storyboard import Storyboard
+from .blend import HELD_WEIGHT, smooth_path, spike
+from .limbs import LIMBS, on_circle
+
+BONES = np.arange(1, len(PARENTS))
+BONE_PARENTS = np.asarray(PARENTS[1:])
+TO_CHILD = np.eye(len(PARENTS))[:, BONES]              # (22, 21): bone b's child end
+TO_PARENT = np.eye(len(PARENTS))[:, BONE_PARENTS]      # (22, 21): bone b's parent end
+JOINT_BONES = TO_CHILD.sum(1) + TO_PARENT.sum(1)       # (22,) bones meeting at each joint
+
+LEGS_END = [*FEET, *ANKLES]   # feet, then ankles
+
+
+@dataclass
+class SteadyConfig:
+    """Durations in frames at TUNED_FPS."""
+    DURATIONS: ClassVar[tuple[str, ...]] = ("smooth_frames", "spread")
+    tolerance: float = 0.035     # m; a frame whose joints pop less is left exactly as it is
+    smooth_frames: float = 1.5   # time scale of the smoothing where the body pops (blend.smooth_path)
+    popping_weight: float = 0.2  # how much a popping frame's own place counts against smoothness
+    spread: int = 2              # frames either side of a pop that are smoothed with it
+    still: float = 0.004         # m a frame; a joint moving less to and from a frame is held there
+    floor: float = 0.06          # m; a foot lower than this is held (it is planting or lifting)
+    bone_iterations: int = 15   # of the bone-length restoring, before the exact IK
+
+
+def frame_pops(path: np.ndarray) -> np.ndarray:
+    """How much each frame of joint paths (N, J, 3) pops, over its joints -> (N,): the larger of its
+    spike and the jump of the steps into or out of it beyond both of their neighbouring steps."""
+    out = spike(path).max(axis=-1)
+    if len(path) >= 4:
+        step = np.linalg.norm(np.diff(path, axis=0), axis=-1)                 # (N-1, J)
+        jump = (step[1:-1] - np.maximum(step[:-2], step[2:])).max(axis=-1)    # step k+1: frames k+1, k+2
+        out[1:-2] = np.maximum(out[1:-2], jump)
+        out[2:-1] = np.maximum(out[2:-1], jump)
+    return out
+
+
+def held_joints(joints: np.ndarray, storyboard: Storyboard, still: float, floor: float) -> np.ndarray:
+    """joints (N, H, 22, 3) -> (N, H, 22) bool: what the steadying must not move."""
+    held = np.zeros(joints.shape[:3], bool)
+    for k in storyboard.keyposes:
+        held[k.frame, storyboard.agent_index(k.agent)] |= k.mask
+    for c in storyboard.contacts:
+        held[c.start:c.end + 1, storyboard.agent_index(c.agent), HANDS[HAND_NAMES.index(c.hand)]] = True
+    step = np.linalg.norm(np.diff(joints, axis=0), axis=-1)                    # (N-1, H, 22)
+    held[1:-1] |= (step[:-1] < still) & (step[1:] < still)
+    low = joints[:, :, list(FEET), 1] < floor                                   # (N, H, 2)
+    held[:, :, LEGS_END] |= np.concatenate([low, low], axis=-1)
+    return held
+
+
+def _restore_bones(joints: np.ndarray, lengths: np.ndarray, free: np.ndarray, iterations: int) -> np.ndarray:
+    """joints (M, 22, 3), bone lengths (21,), free (M, 22) bool -> joints whose bones have their
+    lengths again (to a millimetre or so), moving only free joints: each bone's error is shared
+    between its free ends, every joint averaging what its bones ask (Jacobi iterations)."""
+    out = joints.copy()
+    child, parent = free[:, BONES].astype(float), free[:, BONE_PARENTS].astype(float)   # (M, 21)
+    ends = np.maximum(child + parent, 1.0)
+    pull_child, pull_parent = (child / ends)[..., None], (parent / ends)[..., None]
+    spread = np.where(free, 1.0 / JOINT_BONES, 0.0)[..., None]                           # (M, 22, 1)
+    for _ in range(iterations):
+        bone = out[:, BONES] - out[:, BONE_PARENTS]                                     # (M, 21, 3)
+        length = np.maximum(np.linalg.norm(bone, axis=-1, keepdims=True), 1e-9)
+        error = (1.0 - lengths[:, None] / length) * bone                                # too long by
+        out += spread * (TO_PARENT @ (pull_parent * error) - TO_CHILD @ (pull_child * error))
+    return out
+
+
+def _repin_limbs(pose: np.ndarray, wanted: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """pose (M, 22, 3) on the rigid skeleton; wanted (M, 22, 3) where held (M, 22) ends of limbs
+    must be: each held ankle or wrist goes back, the knee or elbow to the nearest place that keeps
+    both bone lengths, a foot with its ankle. A frame where a held end is out of its limb's reach
+    now is `wanted` whole (its hand stays on its grip)."""
+    out = pose.copy()
+    missed = np.zeros(len(pose), bool)
+    for root, mid, end in LIMBS:
+        at = held[:, end]
+        if not at.any():
+            continue
+        upper = np.linalg.norm(pose[at, mid] - pose[at, root], axis=-1)
+        lower = np.linalg.norm(pose[at, end] - pose[at, mid], axis=-1)
+        target = wanted[at, end]
+        missed[at] |= np.linalg.norm(target - pose[at, root], axis=-1) > upper + lower
+        out[at, mid] = on_circle(pose[at, root], target, upper, lower, pose[at, mid])
+        for child in CHILDREN[end]:   # a held foot keeps its place about the ankle, a free one its own
+            about = np.where(held[at, child, None], wanted[at, child] - target, pose[at, child] - pose[at, end])
+            out[at, child] = target + about
+        out[at, end] = target
+    return np.where(missed[:, None, None], wanted, out)
+
+
+def _steady_person(path: np.ndarray, held: np.ndarray, offsets: np.ndarray, config: SteadyConfig) -> np.ndarray:
+    """One smoothing of a person's popping stretches: path (N, 22, 3), held (N, 22), the person's
+    bone offsets (22, 3) -> path."""
+    before = frame_pops(path)
+    popping = maximum_filter1d(before > config.tolerance, 2 * config.spread + 1)
+    if not popping.any():
+        return path
+    goal = path.copy()
+    for j in range(22):
+        weight = np.where(held[:, j] | ~popping, HELD_WEIGHT, config.popping_weight)
+        goal[:, j] = smooth_path(path[:, j], weight, config.smooth_frames ** 4)
+    # Nor does it lower a foot: lowered, a foot in the air would brush the floor as it travels.
+    goal[:, LEGS_END, 1] = np.maximum(goal[:, LEGS_END, 1], path[:, LEGS_END, 1])
+    # Back on the person's skeleton (IK keeps the smoothed bone directions), held hands and feet
+    # put back where they were.
+    lengths = np.linalg.norm(path[0, BONES] - path[0, BONE_PARENTS], axis=-1)
+    goal[popping] = _restore_bones(goal[popping], lengths, ~held[popping], config.bone_iterations)
+    rigid = forward_kinematics(goal[popping, 0], inverse_kinematics(goal[popping], offsets), offsets)
+    goal[popping] = _repin_limbs(rigid, path[popping], held[popping])
+    after = frame_pops(goal)
+    out = path.copy()
+    stretches, count = label(popping)
+    for s in range(1, count + 1):
+        near = maximum_filter1d(stretches == s, 3)
+        if after[near].max() <= before[near].max() + 1e-6:
+            out[stretches == s] = goal[stretches == s]
+    return out
+
+
+def steady_body(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
+                config: SteadyConfig = SteadyConfig()) -> np.ndarray:
+    """joints (N, H, 22, 3) on each person's skeleton, offsets (H, 22, 3) -> the same where nothing
+    pops; where something does, smoothed with the held joints (held_joints) kept."""
+    out = np.array(joints, float)
+    if len(out) < 4:
+        return out
+    held = held_joints(out, storyboard, config.still, config.floor)
+    for h in range(out.shape[1]):
+        out[:, h] = _steady_person(out[:, h], held[:, h], offsets[h], config)
+    return out

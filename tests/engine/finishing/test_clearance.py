@@ -1,0 +1,43 @@
+"""Hands that never go through the objects (engine/finishing/clearance.py)."""
+import numpy as np
+
+from engine.finishing import finish
+from engine.finishing.clearance import clear_hands
+from engine.objects import world_to_local
+from engine.skeleton import JOINT_INDEX, bone_lengths
+from engine.sketchify import sketchify
+from engine.synth import synthesize
+
+WRIST = JOINT_INDEX["r_wrist"]
+
+
+def wrist_depth(joints, obj_pose, spec, person):
+    """How far (N,) the person's right wrist joint lies inside the object (negative: outside)."""
+    local = world_to_local(joints[:, person, WRIST][:, None], obj_pose[:, 0])[:, 0]
+    return -spec.sdf_local(local)
+
+
+def test_a_free_hand_is_pushed_out_and_a_holding_hand_is_left_on_its_grip():
+    clip = synthesize("carry_together", 0, fps=20)
+    sb = sketchify(clip, 4, 0.0, 0)
+    done = finish(clip, sb)
+    joints, pose, spec = done.joints.astype(float), done.obj_pose.astype(float), sb.objects[0].spec
+    hold = next(c for c in sb.contacts if c.hand == "right")
+    person = sb.agent_index(hold.agent)
+    free = np.ones(len(joints), bool)
+    for c in sb.contacts:
+        if c.hand == "right" and sb.agent_index(c.agent) == person:
+            free[c.start:c.end + 1] = False
+    # Frames just before the hold: the right wrist put 6 cm inside the box, as a generated
+    # hand blending onto its grip can be.
+    sunk = joints.copy()
+    frames = np.arange(hold.start - 4, hold.start - 1)
+    centre = pose[frames, 0, :3] + (0.0, spec.size[1] / 2, 0.0)
+    sunk[frames, person, WRIST] = centre + 0.5 * (sunk[frames, person, WRIST] - centre)
+    assert wrist_depth(sunk, pose, spec, person)[frames].min() > 0.0
+    out = clear_hands(sunk, pose, sb)
+    assert wrist_depth(out, pose, spec, person)[free].max() <= -0.02 + 1e-6      # its radius off the surface
+    assert np.array_equal(out[~free, person, WRIST], sunk[~free, person, WRIST])   # on its grip
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(sunk), atol=1e-9)
+    moved = np.any(out != sunk, axis=-1)
+    assert not np.delete(moved, [JOINT_INDEX[j] for j in ("l_elbow", "r_elbow", "l_wrist", "r_wrist")], axis=2).any()

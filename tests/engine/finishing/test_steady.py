@@ -1,0 +1,84 @@
+"""A whole body that never pops (engine/finishing/steady.py)."""
+import numpy as np
+import pytest
+
+from engine.bench.animator import pop
+from engine.finishing.limbs import LIMBS
+from engine.finishing.steady import SteadyConfig, _repin_limbs, frame_pops, held_joints, steady_body
+from engine.geometry.rotations import axis_angle_to_matrix
+from engine.skeleton import JOINT_INDEX, fit_offsets, forward_kinematics, inverse_kinematics
+from engine.sketchify import sketchify
+from engine.synth import synthesize
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """A hand-off on one rigid skeleton per person, and its storyboard (keys and holds)."""
+    clip = synthesize("handoff", 0, fps=20)
+    joints = clip.joints.astype(float)
+    offsets = np.stack([fit_offsets(joints[:, h]) for h in range(2)])
+    rigid = np.stack([forward_kinematics(joints[:, h, 0], inverse_kinematics(joints[:, h], offsets[h]), offsets[h])
+                      for h in range(2)], 1)
+    return rigid, offsets, sketchify(clip, 4, 0.0, 0)
+
+
+def jolted(joints: np.ndarray, offsets: np.ndarray, frame: int, person: int) -> np.ndarray:
+    """The motion with one person's chest turned 25 degrees for one frame: shoulders, arms and head
+    pop (as stages that hand over to each other can leave them)."""
+    out = joints.copy()
+    rotations = inverse_kinematics(joints[:, person], offsets[person])
+    chest = JOINT_INDEX["spine3"]
+    rotations[frame, chest] = rotations[frame, chest] @ axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(25)]))
+    out[:, person] = forward_kinematics(joints[:, person, 0], rotations, offsets[person])
+    return out
+
+
+def unheld_frame(held: np.ndarray, person: int) -> int:
+    """A frame in the middle of the clip where the person's hands are in no hold."""
+    wrists = [end for _, _, end in LIMBS[2:]]
+    return next(f for f in range(40, 100) if not held[f - 3:f + 4, person][:, wrists].any())
+
+
+def test_a_jolted_chest_is_steadied_and_what_is_held_kept(scene):
+    joints, offsets, storyboard = scene
+    held = held_joints(joints, storyboard, SteadyConfig().still, SteadyConfig().floor)
+    frame = unheld_frame(held, 0)
+    popped = jolted(joints, offsets, frame, 0)
+    out = steady_body(popped, offsets, storyboard)
+    around = slice(frame - 5, frame + 6)
+    assert pop(popped[around]) > 0.1
+    assert pop(out[around]) < 0.5 * pop(popped[around])
+    # Keys, holds and feet on the floor exactly; joints that stood still (knees of a standing
+    # person: held, but placed again on their circle when the body moves) to a centimetre.
+    sketched = held_joints(popped, storyboard, still=0.0, floor=SteadyConfig().floor)
+    np.testing.assert_allclose(out[sketched], popped[sketched], atol=1e-9)
+    still = held_joints(popped, storyboard, SteadyConfig().still, SteadyConfig().floor)
+    assert np.linalg.norm(out - popped, axis=-1)[still].max() < 0.01
+    for h in range(2):                                                           # still on each skeleton
+        refit = forward_kinematics(out[:, h, 0], inverse_kinematics(out[:, h], offsets[h]), offsets[h])
+        np.testing.assert_allclose(refit, out[:, h], atol=1e-6)
+
+
+def test_motion_that_does_not_pop_is_left_exactly(scene):
+    joints, offsets, storyboard = scene
+    calm = SteadyConfig(tolerance=1.0)          # nothing pops by a metre
+    assert np.array_equal(steady_body(joints, offsets, storyboard, calm), joints)
+
+
+def test_frame_pops_agree_with_the_benchmarks_pop(scene):
+    joints = scene[0]
+    assert np.isclose(frame_pops(joints.reshape(len(joints), -1, 3)).max(), pop(joints))
+
+
+def test_a_held_hand_out_of_reach_keeps_its_whole_frame():
+    """Smoothing moved the shoulder 30 cm away from a held wrist: the arm cannot reach it, so
+    the frame is given back as it was (the hand stays on its grip) rather than reach short."""
+    clip = synthesize("carry_together", 0, fps=20)
+    wanted = clip.joints[:2, 0].astype(float)
+    pose = wanted.copy()
+    pose[1] += (0.3, 0.0, 0.0)
+    held = np.zeros((2, 22), bool)
+    held[:, JOINT_INDEX["r_wrist"]] = True
+    out = _repin_limbs(pose, wanted, held)
+    np.testing.assert_array_equal(out[1], wanted[1])
+    np.testing.assert_allclose(out[0], wanted[0], atol=1e-9)
