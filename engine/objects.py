@@ -68,7 +68,10 @@ class ObjectSpec:
             outside = np.linalg.norm(np.stack([np.maximum(radial, 0), np.maximum(vertical, 0)], -1), axis=-1)
             return outside + np.minimum(np.maximum(radial, vertical), 0)
         centres, halves = self.table_boxes()
-        return np.min([_box_sdf(p - c, half) for c, half in zip(centres, halves)], axis=0)
+        out = _box_sdf(p - centres[0], halves[0])
+        for c, half in zip(centres[1:], halves[1:]):
+            out = np.minimum(out, _box_sdf(p - c, half))
+        return out
 
     def sdf_world(self, p: np.ndarray, pose: np.ndarray) -> np.ndarray:
         """Signed distance of world points (..., P, 3) to the object at pose (..., 7) -> (..., P)."""
@@ -78,7 +81,8 @@ class ObjectSpec:
 def _box_sdf(q: np.ndarray, half) -> np.ndarray:
     """Signed distance to boxes centred at 0: q (..., 3), half (..., 3) broadcastable -> (...)."""
     d = np.abs(q) - np.asarray(half)
-    return np.linalg.norm(np.maximum(d, 0), axis=-1) + np.minimum(np.max(d, axis=-1), 0)
+    outside = np.maximum(d, 0)
+    return np.sqrt(np.sum(outside * outside, axis=-1)) + np.minimum(np.max(d, axis=-1), 0)
 
 
 GRIP_SIGNS = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)  # (K=4, 2): sx, sz

@@ -44,6 +44,7 @@ class SteadyConfig:
     spread: int = 2              # frames either side of a pop that are smoothed with it
     still: float = 0.004         # m a frame; a joint moving less to and from a frame is held there
     floor: float = 0.06          # m; a foot lower than this is held (it is planting or lifting)
+    swing_floor: float = 0.08    # m; a foot in the air is lowered no further than this (a step's lift)
     bone_iterations: int = 15   # of the bone-length restoring, before the exact IK
 
 
@@ -124,8 +125,8 @@ def _steady_person(path: np.ndarray, held: np.ndarray, offsets: np.ndarray, conf
     for j in range(22):
         weight = np.where(held[:, j] | ~popping, HELD_WEIGHT, config.popping_weight)
         goal[:, j] = smooth_path(path[:, j], weight, config.smooth_frames ** 4)
-    # Nor does it lower a foot: lowered, a foot in the air would brush the floor as it travels.
-    goal[:, LEGS_END, 1] = np.maximum(goal[:, LEGS_END, 1], path[:, LEGS_END, 1])
+    # Nor does it lower a foot in the air below swing_floor: it would brush the floor as it travels.
+    goal[:, LEGS_END, 1] = np.maximum(goal[:, LEGS_END, 1], np.minimum(path[:, LEGS_END, 1], config.swing_floor))
     # Back on the person's skeleton (IK keeps the smoothed bone directions), held hands and feet
     # put back where they were.
     lengths = np.linalg.norm(path[0, BONES] - path[0, BONE_PARENTS], axis=-1)
