@@ -68,9 +68,10 @@ class DiffusionTeacher(nn.Module):
 
     forward = eps
 
-    def loss(self, z0: torch.Tensor, cond: Conditioning | None, entity_pos: torch.Tensor | None = None,
-             generator: torch.Generator | None = None, cond_drop: float = 0.1) -> dict[str, torch.Tensor]:
-        """Epsilon MSE at tau ~ U[tau_min, 1], with `cond_drop` of the samples unconditional."""
+    def noised(self, z0: torch.Tensor, cond: Conditioning | None, generator: torch.Generator | None = None,
+               cond_drop: float = 0.1):
+        """A training draw: tau ~ U[tau_min, 1] (B,), noise and z_tau like z0, and cond with
+        `cond_drop` of the samples unconditional."""
         b = z0.shape[0]
         s = self.schedule
         tau = s.tau_min + (1 - s.tau_min) * torch.rand(b, generator=generator, device=z0.device)
@@ -79,6 +80,12 @@ class DiffusionTeacher(nn.Module):
         z_tau = abar.sqrt() * z0 + (1 - abar).sqrt() * noise
         if cond is not None:
             cond = cond.dropped(torch.rand(b, generator=generator, device=z0.device) < cond_drop)
+        return tau, noise, z_tau, cond
+
+    def loss(self, z0: torch.Tensor, cond: Conditioning | None, entity_pos: torch.Tensor | None = None,
+             generator: torch.Generator | None = None, cond_drop: float = 0.1) -> dict[str, torch.Tensor]:
+        """Epsilon MSE at tau ~ U[tau_min, 1], with `cond_drop` of the samples unconditional."""
+        tau, noise, z_tau, cond = self.noised(z0, cond, generator, cond_drop)
         loss = (self.eps(z_tau, tau, cond, entity_pos) - noise).pow(2).mean()
         return {"loss": loss, "eps_mse": loss.detach()}
 

@@ -36,3 +36,15 @@ def test_loss_trains_the_branches_and_the_encoder():
     exits = model.denoiser.backbone.branches["kf"].out[0].weight   # zero at start, as ControlNet's zero convs:
     assert exits.grad is not None and exits.grad.abs().sum() > 0   # their weights learn first
     assert model.denoiser.backbone.main.output.weight.grad.abs().sum() > 0
+
+
+def test_the_noise_it_gives_the_solvers_comes_from_its_clean_motion():
+    """Predicted clean (MDM's parameterization): DDIM's clean estimate from the derived noise is
+    the network's clean motion, at any noise level."""
+    model = build_parts(TINY_MODEL, ("sketch2anim",))["sketch2anim"]
+    torch.nn.init.normal_(model.denoiser.backbone.main.output.weight, 0, 0.1)
+    z, tau = torch.randn(2, 24, 3, 201), torch.tensor([0.05, 0.9])
+    with torch.no_grad():
+        clean, eps = model.denoiser.clean(z, tau), model.denoiser.eps(z, tau)
+    abar = model.denoiser.schedule.alpha_bar(tau).reshape(-1, 1, 1, 1)
+    assert torch.allclose((z - (1 - abar).sqrt() * eps) / abar.sqrt(), clean, atol=1e-4)
