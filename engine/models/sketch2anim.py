@@ -2,9 +2,10 @@
 motion space whose storyboard enters through keypose, trajectory and object ControlNet branches
 (models/controlnet.py), with its own copy of the aligned 2D/3D sketch encoder at frame rate.
 
-Raw motion, predicted clean as MDM does: the VQ-VAE's normalized frame features per entity (x (B, N, 3, 201); the object's 19
-zero-padded), so the baseline learns the same data with the same normalization, without the
-latent. Its backbone is our teacher's U-Net configuration at frame rate.
+Raw motion, predicted clean as MDM does: the VQ-VAE's normalized frame features per entity
+(x (B, N, 3, 201); the object's 19 zero-padded), so the baseline learns the same data with the
+same normalization, without the latent. Its backbone is our teacher's U-Net configuration at
+frame rate.
 """
 from __future__ import annotations
 
