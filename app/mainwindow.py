@@ -142,10 +142,11 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.act_quit = a("&Quit", self.close, QKeySequence.Quit)
 
         stack = self.doc.undo_stack
-        self.act_undo = stack.createUndoAction(self, "&Undo")
+        self.act_undo, self.act_redo = stack.createUndoAction(self, "&Undo"), stack.createRedoAction(self, "&Redo")
         self.act_undo.setShortcuts([QKeySequence.Undo])
-        self.act_redo = stack.createRedoAction(self, "&Redo")
         self.act_redo.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
+        for action, label in ((self.act_undo, "Undo"), (self.act_redo, "Redo")):
+            action.setIconText(label)   # the toolbar's button keeps its width; its tooltip names the edit
         self.addActions([self.act_undo, self.act_redo])
         self.act_copy_pose = a("Copy Previous Keypose", self.copy_previous_keypose, QKeySequence("Ctrl+D"),
                                tip="Pose the selected agent at the playhead like its previous keyframe")

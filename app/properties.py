@@ -182,6 +182,7 @@ class PropertiesPanel(QWidget):
         self.duration.setText(f"{sb.length / sb.fps:.2f} s")
         if not self.text.isModified():      # never overwrite what is being typed (until Enter)
             self.text.setText(sb.text)
+            self.text.setCursorPosition(0)  # a long text shows its beginning
         self.agent.clear()
         for a in sb.agents:
             self.agent.addItem(a.name or a.id, a.id)

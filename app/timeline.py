@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
-from PySide6.QtWidgets import QComboBox, QHBoxLayout, QMenu, QToolButton, QWidget
+from PySide6.QtWidgets import QComboBox, QHBoxLayout, QMenu, QStyle, QToolButton, QWidget
 
 from engine.finishing.timing import holds
 
@@ -260,7 +260,9 @@ class PlaybackControls(QWidget):
         playback.speedChanged.connect(self._show_speed)
 
     def _show_playing(self, playing: bool) -> None:
-        self.play_button.setText("\u23f8" if playing else "\u25b6")
+        # The style's own icons: a font may lack the pause sign (DejaVu does: an empty box).
+        self.play_button.setText("Pause" if playing else "Play")
+        self.play_button.setIcon(self.style().standardIcon(QStyle.SP_MediaPause if playing else QStyle.SP_MediaPlay))
 
     def _choose_speed(self, index: int) -> None:
         if index >= 0:   # -1: a rate set elsewhere that the list does not offer

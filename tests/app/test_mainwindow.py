@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch  # noqa: F401  as main() does: loaded before the window, so no generation pays for it
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer
-from PySide6.QtWidgets import QMessageBox
+from PySide6.QtWidgets import QMessageBox, QToolBar
 
 from app import commands as cmd
 from app.autosave import Recovery
@@ -432,5 +432,18 @@ def test_the_storyboard_text_is_typed_undoable_and_reaches_the_generator(qtbot, 
     window.generate()
     qtbot.waitUntil(lambda: bool(seen))
     assert seen[0] == "two people carry the box slowly"
+    assert field.cursorPosition() == 0                             # a long text shows its beginning
     window.doc.undo_stack.undo()
     assert window.doc.storyboard.text == "" and field.text() == ""
+
+
+def test_the_toolbars_undo_button_keeps_its_label_and_names_the_edit_in_its_tooltip(qtbot, window):
+    """Its width never changes with the edit it would undo (the toolbar stayed put); the menu and
+    the tooltip still say which edit."""
+    button = window.findChild(QToolBar, "Tools").widgetForAction(window.act_undo)
+    width = button.sizeHint().width()
+    load_sample(window)
+    window.properties.text.setText("a text")
+    window.properties.text.editingFinished.emit()
+    assert button.text() == "Undo" and button.sizeHint().width() == width
+    assert window.act_undo.text().startswith("&Undo ") and window.act_undo.toolTip() != "Undo"
