@@ -162,7 +162,8 @@ class CanvasPainting:
         small.setPointSizeF(max(7.0, small.pointSizeF() - 1.5))
         p.setFont(small)
         p.setPen(color.darker(130))
-        self._draw_label(p, QPointF(px[0][0] + 6, px[0][1] + 14), label)
+        # Beside the arrowhead: the start is where the figure stands, and a label there hid it.
+        self._draw_label(p, QPointF(px[-1][0] + 8, px[-1][1] + 14), label)
         p.setFont(self.font())
 
     def label_rect(self, baseline: QPointF, text: str, font: QFont) -> QRectF:
