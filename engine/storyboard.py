@@ -173,6 +173,13 @@ class Storyboard:
             chi[t.start:t.end + 1, self.agent_index(t.agent), JOINT_INDEX[t.joint]] = True
         return chi
 
+    def holding(self) -> np.ndarray:
+        """(N, H, 2) bool: True where hand s (HANDS order) of human h is in a contact at frame n."""
+        held = np.zeros((self.length, len(self.agents), len(HANDS)), dtype=bool)
+        for c in self.contacts:
+            held[c.start:c.end + 1, self.agent_index(c.agent), HANDS.index(c.hand)] = True
+        return held
+
     # ---- file format ---------------------------------------------------------------------
     def to_dict(self) -> dict:
         d = {"format": FORMAT, "version": VERSION, "fps": self.fps, "length": self.length,

@@ -14,7 +14,6 @@ import numpy as np
 from ..body import JOINT_RADII
 from ..geometry.rotations import quat_to_matrix
 from ..objects import ObjectSpec, world_to_local
-from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from .blend import smooth_correction
 from .limbs import LIMBS, on_circle
@@ -40,11 +39,9 @@ def clear_hands(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
     wrist sinks and eases in and out over about `smooth_frames` frames around (blend.py)."""
     out = np.array(joints, float)
     specs = [o.spec for o in storyboard.objects]
+    on_grip = storyboard.holding()                                              # (N, H, 2)
     for side, (shoulder, elbow, wrist) in enumerate(ARMS):
-        holding = np.zeros(out.shape[:2], bool)                                   # (N, H) on a grip or a hand
-        for c in storyboard.contacts:
-            if c.hand == HAND_NAMES[side]:
-                holding[c.start:c.end + 1, storyboard.agent_index(c.agent)] = True
+        holding = on_grip[..., side]
         radius = JOINT_RADII[wrist]
         push = np.zeros(out.shape[:2] + (3,))                                   # (N, H, 3)
         for o, spec in enumerate(specs):

@@ -19,17 +19,17 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import label, maximum_filter1d
 
-from ..skeleton import ANKLES, CHILDREN, FEET, HANDS, PARENTS, forward_kinematics, inverse_kinematics
-from ..storyboard import HANDS as HAND_NAMES
+from ..body import BONES as BODY_BONES
+from ..skeleton import (ANKLES, CHILDREN, FEET, HANDS, NUM_JOINTS, bone_lengths, forward_kinematics,
+                        inverse_kinematics)
 from ..storyboard import Storyboard
 from .blend import HELD_WEIGHT, smooth_path, spike
 from .limbs import LIMBS, on_circle
 
-BONES = np.arange(1, len(PARENTS))
-BONE_PARENTS = np.asarray(PARENTS[1:])
-TO_CHILD = np.eye(len(PARENTS))[:, BONES]              # (22, 21): bone b's child end
-TO_PARENT = np.eye(len(PARENTS))[:, BONE_PARENTS]      # (22, 21): bone b's parent end
-JOINT_BONES = TO_CHILD.sum(1) + TO_PARENT.sum(1)       # (22,) bones meeting at each joint
+BONE_PARENTS, BONES = BODY_BONES.T                  # (21,) each bone's parent and child joint
+TO_CHILD = np.eye(NUM_JOINTS)[:, BONES]             # (22, 21): bone b's child end
+TO_PARENT = np.eye(NUM_JOINTS)[:, BONE_PARENTS]     # (22, 21): bone b's parent end
+JOINT_BONES = TO_CHILD.sum(1) + TO_PARENT.sum(1)    # (22,) bones meeting at each joint
 
 LEGS_END = [*FEET, *ANKLES]   # feet, then ankles
 
@@ -65,8 +65,7 @@ def held_joints(joints: np.ndarray, storyboard: Storyboard, still: float, floor:
     held = np.zeros(joints.shape[:3], bool)
     for k in storyboard.keyposes:
         held[k.frame, storyboard.agent_index(k.agent)] |= k.mask
-    for c in storyboard.contacts:
-        held[c.start:c.end + 1, storyboard.agent_index(c.agent), HANDS[HAND_NAMES.index(c.hand)]] = True
+    held[:, :, list(HANDS)] |= storyboard.holding()
     step = np.linalg.norm(np.diff(joints, axis=0), axis=-1)                    # (N-1, H, 22)
     held[1:-1] |= (step[:-1] < still) & (step[1:] < still)
     low = joints[:, :, list(FEET), 1] < floor                                   # (N, H, 2)
@@ -129,7 +128,7 @@ def _steady_person(path: np.ndarray, held: np.ndarray, offsets: np.ndarray, conf
     goal[:, LEGS_END, 1] = np.maximum(goal[:, LEGS_END, 1], np.minimum(path[:, LEGS_END, 1], config.swing_floor))
     # Back on the person's skeleton (IK keeps the smoothed bone directions), held hands and feet
     # put back where they were.
-    lengths = np.linalg.norm(path[0, BONES] - path[0, BONE_PARENTS], axis=-1)
+    lengths = bone_lengths(path[0])[BONES]
     goal[popping] = _restore_bones(goal[popping], lengths, ~held[popping], config.bone_iterations)
     rigid = forward_kinematics(goal[popping, 0], inverse_kinematics(goal[popping], offsets), offsets)
     goal[popping] = _repin_limbs(rigid, path[popping], held[popping])

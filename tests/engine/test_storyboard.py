@@ -65,6 +65,13 @@ def test_chi_mask_and_nu():
     assert all(0 <= nu(k, 7) <= 6 for k in np.linspace(0, 7, 50))
 
 
+def test_holding_marks_each_hand_over_its_contacts():
+    held = Storyboard.from_dict(GOOD).holding()
+    assert held.shape == (60, 2, 2)
+    assert held[10:41, 0, 0].all() and held[45:51, 0, 1].all()
+    assert held.sum() == 31 + 6                       # the partner's hand is the other one's contact
+
+
 def test_retimed_keeps_every_element_at_its_time():
     sb = Storyboard.from_dict(GOOD)                                   # 60 frames at 20 fps
     at30 = sb.retimed(30.0)
