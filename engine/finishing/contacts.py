@@ -302,10 +302,10 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
             allowed = np.sqrt(np.maximum((config.reach * arm) ** 2 - reach[:, 1] ** 2, 0.0))
             distance = np.linalg.norm(across, axis=-1)
             short = across * (np.maximum(distance - allowed, 0.0) / np.maximum(distance, 1e-9))[:, None]
-            w = _span_weight(n, c.start, c.end, config.blend_frames)
+            w = _span_weight(n, c.start, c.end, config.blend_frames) * (distance > allowed)
             need[:, a] += w[:, None] * short
             weight[:, a] += w
-        step = need / np.maximum(weight, 1.0)[..., None]          # both hands' shortfalls averaged
+        step = need / np.maximum(weight, 1.0)[..., None]          # the short hands' shortfalls averaged
         moved += gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
         length = np.maximum(np.linalg.norm(moved, axis=-1), 1e-9)
         moved *= np.minimum(1.0, room / length)[..., None]
