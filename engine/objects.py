@@ -73,6 +73,18 @@ class ObjectSpec:
             out = np.minimum(out, _box_sdf(p - c, half))
         return out
 
+    def penetration_local(self, p: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """How deep spheres at local points p (..., 3) of radii (broadcastable to (...)) sink
+        into the object: max(radii - sdf, 0) -> (...). Only spheres that reach its bounding sphere
+        are measured (the rest are 0 either way): the finishing asks this of every candidate
+        elbow of every held frame."""
+        from_centre = np.linalg.norm(p - (0, self.size[1] / 2, 0), axis=-1)
+        radii = np.broadcast_to(radii, from_centre.shape)
+        near = from_centre < 0.5 * np.linalg.norm(self.size) + radii
+        depth = np.zeros(from_centre.shape)
+        depth[near] = np.maximum(radii[near] - self.sdf_local(p[near]), 0.0)
+        return depth
+
     def sdf_world(self, p: np.ndarray, pose: np.ndarray) -> np.ndarray:
         """Signed distance of world points (..., P, 3) to the object at pose (..., 7) -> (..., P)."""
         return self.sdf_local(world_to_local(p, pose))

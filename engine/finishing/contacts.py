@@ -139,8 +139,8 @@ def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints
     away = _forward(joints)                                           # (N, H, 3)
     for _ in range(iterations):
         local = world_to_local(points.reshape(n, -1, 3), pose_array(pos, yaw)).reshape(points.shape)
-        depth = np.max(radii - spec.sdf_local(local), axis=-1)         # (N, H)
-        pos = pos + np.sum(np.where(holding, np.maximum(depth, 0), 0)[..., None] * away, axis=1)
+        depth = np.max(spec.penetration_local(local, radii), axis=-1)  # (N, H)
+        pos = pos + np.sum(np.where(holding, depth, 0)[..., None] * away, axis=1)
     return pos
 
 
@@ -354,17 +354,17 @@ def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storybo
 
 def _arm_penetration(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
                      specs: list[ObjectSpec]) -> np.ndarray:
-    """Deepest penetration (M, C) of an arm's spheres (upper-arm middle, elbow, forearm middle;
+    """Deepest penetration (M, C), 0 where none, of an arm's spheres (upper-arm middle, elbow, forearm middle;
     engine.metrics' radii) into any object or the ground. shoulder, wrist (M, 1, 3); elbow
     (M, C, 3) C candidates; obj_pose (M, O, 7). The wrist is left out: it holds on at its grip."""
     s, e, w = (JOINT_RADII[j] for j in (SHOULDERS[0], ELBOWS[0], HANDS[0]))
     radii = np.array([(s + e) / 2, e, (e + w) / 2])
     points = np.stack(np.broadcast_arrays((shoulder + elbow) / 2, elbow, (elbow + wrist) / 2), axis=2)  # (M, C, 3, 3)
     m, c = elbow.shape[:2]
-    depth = np.max(radii - points[..., 1], axis=-1)
+    depth = np.maximum(np.max(radii - points[..., 1], axis=-1), 0.0)
     for o, spec in enumerate(specs):
         local = world_to_local(points.reshape(m, -1, 3), obj_pose[:, o]).reshape(points.shape)
-        depth = np.maximum(depth, np.max(radii - spec.sdf_local(local), axis=-1))
+        depth = np.maximum(depth, np.max(spec.penetration_local(local, radii), axis=-1))
     return depth
 
 
@@ -391,7 +391,7 @@ def _swivel_clear(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, ob
     grid = np.broadcast_to(SWIVELS, (len(elbow), len(SWIVELS)))
     candidates = _swivelled(shoulder, elbow, wrist, grid)                              # (M, C, 3)
     depth = _arm_penetration(shoulder[:, None], candidates, wrist[:, None], obj_pose, specs)
-    score = np.maximum(depth, 0.0) + config.swivel_cost * np.abs(SWIVELS)
+    score = depth + config.swivel_cost * np.abs(SWIVELS)
     turn = np.angle(np.exp(1j * (SWIVELS[:, None] - SWIVELS[None])))                  # (C, C) wrapped
     change = config.swivel_change_cost * turn ** 2
     angles = np.zeros(len(elbow))

@@ -12,7 +12,15 @@ _EPS = 1e-9
 
 
 def normalize(v: np.ndarray, axis: int = -1) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=axis, keepdims=True), _EPS)
+    return v / np.maximum(np.sqrt(np.sum(v * v, axis=axis, keepdims=True)), _EPS)
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.cross of (..., 3) vectors, written out: several times faster on the small batches of
+    the finishing's kinematics (np.cross moves axes about for every call)."""
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
 
 
 def matrix_to_6d(R: np.ndarray) -> np.ndarray:
@@ -117,7 +125,7 @@ def matrix_to_quat(R: np.ndarray) -> np.ndarray:
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Smallest rotation taking direction a to direction b. (..., 3), (..., 3) -> (..., 3, 3)."""
     a, b = normalize(a), normalize(b)
-    v = np.cross(a, b)
+    v = cross(a, b)
     c = np.sum(a * b, axis=-1)
     # Rodrigues without the angle, written out (the finishing's IK calls this most):
     # R = c I + [v]x + v v^T / (1 + c).
@@ -133,8 +141,30 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def kabsch(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """Rotation R minimising sum |R src_i - dst_i|^2. src, dst: (..., P, 3) -> (..., 3, 3)."""
+def kabsch(src: np.ndarray, dst: np.ndarray, iterations: int = 8) -> np.ndarray:
+    """Rotation R minimising sum |R src_i - dst_i|^2. src, dst: (..., P, 3) -> (..., 3, 3).
+
+    R is the orthogonal polar factor of M = dst^T src, found by scaled Newton iterations
+    M <- (g M + M^-T / g) / 2, g = |det M|^(-1/3) (Higham 1986), with 3x3 inverses from
+    cofactors: twice as fast as a batched SVD, which the finishing's IK spent most of its time in.
+    Where that fails to converge to a rotation (a reflection, a degenerate M), the SVD answers."""
+    m = np.swapaxes(dst, -1, -2) @ src
+    with np.errstate(divide="ignore", invalid="ignore"):   # a singular M: failed below
+        for _ in range(iterations):
+            r0, r1, r2 = m[..., 0, :], m[..., 1, :], m[..., 2, :]
+            cofactors = np.stack([cross(r1, r2), cross(r2, r0), cross(r0, r1)], axis=-2)   # det M * M^-T
+            det = np.sum(r0 * cofactors[..., 0, :], axis=-1)[..., None, None]
+            scale = np.abs(det) ** (-1 / 3)
+            m = 0.5 * (scale * m + cofactors / (scale * det))
+        error = np.abs(np.swapaxes(m, -1, -2) @ m - np.eye(3)).max((-1, -2))
+        det = np.sum(m[..., 0, :] * cross(m[..., 1, :], m[..., 2, :]), axis=-1)
+        failed = ~((error < 1e-10) & (det > 0))
+    if np.any(failed):
+        m[failed] = _kabsch_svd(src[failed], dst[failed])
+    return m
+
+
+def _kabsch_svd(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     U, _, Vt = np.linalg.svd(np.swapaxes(src, -1, -2) @ dst)
     V = np.swapaxes(Vt, -1, -2).copy()
     V[..., :, 2] *= np.sign(np.linalg.det(V) * np.linalg.det(U))[..., None]   # a rotation, never a reflection

@@ -73,6 +73,19 @@ def test_sdf_matches_mesh(kind):
         assert np.all(np.abs(spec.sdf_local(np.asarray(mesh.vertices))) < 1e-6)  # vertices on the surface
 
 
+@pytest.mark.parametrize("kind", ["box", "table", "canister"])
+def test_penetration_is_the_sdf_depth_of_every_sphere(kind):
+    """The bounding-sphere shortcut changes nothing: max(radius - sdf, 0) for near and far spheres."""
+    spec = ObjectSpec(kind)
+    lo, hi = spec.mesh().bounds
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(lo - 0.6, hi + 0.6, size=(50, 40, 3))
+    radii = rng.uniform(0.0, 0.3, size=40)
+    depth = spec.penetration_local(pts, radii)
+    assert np.array_equal(depth, np.maximum(radii - spec.sdf_local(pts), 0.0))
+    assert 0 < np.mean(depth > 0) < 1
+
+
 def test_object_pose_transforms_invert():
     pose = np.concatenate([[0.5, 0.2, -1.0], matrix_to_quat(axis_angle_to_matrix(np.array([0.1, 1.2, -0.3])))])
     p = np.random.default_rng(2).normal(size=(7, 3))
