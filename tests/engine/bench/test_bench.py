@@ -78,7 +78,7 @@ def test_markdown_has_every_table_and_the_command(tiny_run):
     assert f"`sketch2colab bench --quick -o {root / 'BENCHMARKS.md'} --json {root / 'bench.json'}`" in md
     for heading in ("## Held-out synthesized scenes", "## Noise robustness", "## Held-out real pairs",
                     "## Drawn the way artists draw", "What an animator looks at", "keepable-motion bounds",
-                    "### Ours vs the COLLAGE Teacher", "## Speed", "## Diagnostics", "## Sketch + text",
+                    "### Ours against the paper's targets", "## Speed", "## Diagnostics", "## Sketch + text",
                     "does not read text", "Per noise level:"):
         assert heading in md
     assert "| Ours | 2 |" in md and "| COLLAGE Teacher (DDIM-50) | 2 |" in md
