@@ -354,9 +354,10 @@ def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storybo
 
 def _arm_penetration(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
                      specs: list[ObjectSpec]) -> np.ndarray:
-    """Deepest penetration (M, C), 0 where none, of an arm's spheres (upper-arm middle, elbow, forearm middle;
-    engine.metrics' radii) into any object or the ground. shoulder, wrist (M, 1, 3); elbow
-    (M, C, 3) C candidates; obj_pose (M, O, 7). The wrist is left out: it holds on at its grip."""
+    """Deepest penetration (M, C), 0 where none, of an arm's spheres (upper-arm middle, elbow,
+    forearm middle; engine.metrics' radii) into any object or the ground. shoulder, wrist
+    (M, 1, 3); elbow (M, C, 3) C candidates; obj_pose (M, O, 7). The wrist is left out: it holds
+    on at its grip."""
     s, e, w = (JOINT_RADII[j] for j in (SHOULDERS[0], ELBOWS[0], HANDS[0]))
     radii = np.array([(s + e) / 2, e, (e + w) / 2])
     points = np.stack(np.broadcast_arrays((shoulder + elbow) / 2, elbow, (elbow + wrist) / 2), axis=2)  # (M, C, 3, 3)
