@@ -126,7 +126,7 @@ def frame_penetration(joints: np.ndarray, obj_pose: np.ndarray | None = None,
     depth = [np.max(-joints[..., 1], axis=(1, 2))]
     for o, spec in enumerate(objects):
         local = world_to_local(points.reshape(n, -1, 3), obj_pose[:, o])
-        depth.append(np.max(np.tile(radii, h) - spec.sdf_local(local), axis=1))
+        depth.append(np.max(spec.penetration_local(local, np.tile(radii, h)), axis=1))
     for a in range(h):
         for b in range(a + 1, h):
             dist = np.linalg.norm(points[:, a, :, None] - points[:, b, None], axis=-1)
