@@ -6,7 +6,8 @@ Three steps, run on decoded joint positions (N frames, H people, 22 joints, worl
    carrying one box drift apart along their timing-free paths; an arm cannot close that gap).
 1. `hold_object` rebuilds each object's pose from the storyboard's contacts: a rigid body that
    moves only while held (an upright yaw + translation fit of its grips to the holding wrists,
-   at a height every holder's arm reaches), resting on the ground before, between and after
+   turning with the holder's chest while one person alone holds it, at a height every holder's
+   arm reaches), resting on the ground before, between and after
    holds, where the sketch puts it.
 2. `reach_contacts` moves each contact's wrist onto its grip (or the other person's hand) by
    exact two-bone IK from the shoulder, eased in before the span and out after it. Only elbows
@@ -184,6 +185,25 @@ def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | No
     return np.mean(places, axis=0) if places else None
 
 
+def _carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma: float) -> np.ndarray:
+    """A held object's heading (N,) turning with its holder's chest while one person alone holds it
+    (holding (N, H) bool; joints (N, H, 22, 3)), at the heading the fit gives it on average there:
+    a yaw fitted to one person's two wrists spun the object a full turn in ten frames as the wrists
+    crossed. The chest's heading is smoothed over `sigma` frames."""
+    yaw = np.unwrap(yaw)
+    forward = _forward(joints)                                                # (N, H, 3)
+    chest = gaussian_filter1d(np.unwrap(np.arctan2(-forward[..., 2], forward[..., 0]), axis=0), sigma, axis=0,
+                              mode="nearest")                                 # (N, H)
+    holder = np.where(holding.sum(axis=1) == 1, np.argmax(holding, axis=1), -1)   # (N,) -1: none or several
+    runs = np.flatnonzero(np.diff(np.concatenate([[-2], holder, [-2]])))           # where the holder changes
+    for start, stop in zip(runs[:-1], runs[1:]):
+        person = holder[start]
+        if person >= 0:
+            offset = yaw[start:stop] - chest[start:stop, person]
+            yaw[start:stop] = chest[start:stop, person] + np.arctan2(np.mean(np.sin(offset)), np.mean(np.cos(offset)))
+    return yaw
+
+
 def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
               spec: ObjectSpec, fps: float, config: ContactConfig, rests: list[np.ndarray | None]) -> np.ndarray:
     """One object's pose (N, 7) from joints (N, H, 22, 3), the local grip each hand holds
@@ -205,6 +225,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
         fit_yaw = fit_yaw[np.where(last >= 0, last, np.argmax(defined))]
     else:
         fit_yaw = np.full(n, still_yaw)
+    fit_yaw = _carried_yaw(fit_yaw, joints, held.reshape(n, h, 2).any(axis=-1), config.smooth_sigma)
     fit_pos = _fit_position(wrists, grips, held, fit_yaw)
     fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
     fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, held.reshape(n, h, 2).any(axis=-1),

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from engine.controls import build_controls
-from engine.finishing.contacts import (ContactConfig, _arm_penetration, _swivel_clear, hold_object, object_anchors,
-                                       reach_contacts, step_within_reach)
+from engine.finishing.contacts import (ContactConfig, _arm_penetration, _swivel_clear, _yaw_of, hold_object,
+                                       object_anchors, reach_contacts, step_within_reach)
 from engine.metrics import anchor_error
 from engine.objects import ObjectSpec
 from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
@@ -173,6 +173,22 @@ def test_one_person_and_one_hand():
     np.testing.assert_allclose(bone_lengths(out), bone_lengths(joints), atol=1e-9)
     # The right hand alone carries it on without turning it.
     np.testing.assert_allclose(held[31:35, 0, 3:], np.broadcast_to(held[30, 0, 3:], (4, 4)), atol=1e-12)
+
+
+def test_one_holder_turns_the_object_with_their_chest_not_their_wrists():
+    sb, joints = one_person()
+    wrists = list(HANDS)
+    middle = joints[:, :, wrists].mean(axis=2, keepdims=True)
+    spin = np.linspace(0.0, 2 * np.pi, len(joints))            # the wrists circle each other once
+    crossing = joints.copy()
+    crossing[:, :, wrists] = middle + np.einsum("nij,nhkj->nhki", yaw_matrix(spin), joints[:, :, wrists] - middle)
+    yaw = np.unwrap(_yaw_of(hold_object(crossing, np.zeros((len(joints), 1, 7)), sb)[:31, 0, 3:]))
+    assert np.ptp(yaw) < 1e-6                                  # the chest does not turn: neither does the box
+    pelvis = joints[:, :, :1]
+    turn = np.linspace(0.0, np.pi / 2, len(joints))            # the whole body turns a quarter
+    turning = pelvis + np.einsum("nij,nhkj->nhki", yaw_matrix(turn), joints - pelvis)
+    yaw = np.unwrap(_yaw_of(hold_object(turning, np.zeros((len(joints), 1, 7)), sb)[:, 0, 3:]))
+    np.testing.assert_allclose(yaw[30] - yaw[0], turn[30], atol=0.05)
 
 
 def test_no_objects():
