@@ -23,6 +23,7 @@ class GenerationSettings:
     steps: int = DEFAULT_STEPS
     seed: int = 0
     cfg: float = 1.6
+    text_cfg: float = 1.6           # the text's own guidance weight (SamplerConfig.text_cfg; as cfg: plain)
     use_energy: bool = True
     use_ctmc: bool = True
     steady: bool = False            # damped guidance (SamplerConfig.guidance_max_rate)
@@ -62,7 +63,8 @@ def start_generation(storyboard: Storyboard, settings: GenerationSettings) -> St
     from engine.sampling.sampler import sample
     config = sampler_config(steps=settings.steps, seed=settings.seed, cfg=settings.cfg, variations=settings.variations,
                             energy=settings.use_energy, ctmc=settings.use_ctmc, steady=settings.steady,
-                            preview=settings.preview, threads=settings.threads, reserve_cores=settings.reserve_cores)
+                            preview=settings.preview, threads=settings.threads, reserve_cores=settings.reserve_cores,
+                            text_cfg=None if settings.text_cfg == settings.cfg else settings.text_cfg)
     return (yield from sample(_bundle(), Request.build(storyboard, config)))
 
 

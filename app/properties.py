@@ -105,6 +105,9 @@ class PropertiesPanel(QWidget):
         self.steps = QSpinBox()
         self.steps.setRange(1, 200)
         self.cfg = self._spin(0.0, 5.0, 0.1, 2)
+        self.text_cfg = self._spin(0.0, 10.0, 0.5, 1)
+        self.text_cfg.setToolTip("How strongly the motion follows the storyboard's text where the sketch leaves "
+                                 "room (thumbnails); as Guidance: no extra weight. Above it, a third more time.")
         self.use_energy = QCheckBox("Energies")
         self.use_ctmc = QCheckBox("CTMC phases")
         self.steady = QCheckBox("Steady")
@@ -118,6 +121,7 @@ class PropertiesPanel(QWidget):
         form.addRow("Seed", self.seed)
         form.addRow("Steps", self.steps)
         form.addRow("Guidance", self.cfg)
+        form.addRow("Text weight", self.text_cfg)
         toggles = QHBoxLayout()
         toggles.addWidget(self.use_energy)
         toggles.addWidget(self.use_ctmc)
@@ -146,7 +150,7 @@ class PropertiesPanel(QWidget):
         document.toolOptionsChanged.connect(lambda: self.shape.setCurrentText(document.tool_options.object_shape))
         self.delete_contact.clicked.connect(self._delete_contact)
         self.contacts.currentRowChanged.connect(lambda row: self.delete_contact.setEnabled(row >= 0))
-        for widget in (self.seed, self.steps, self.cfg, self.variations):
+        for widget in (self.seed, self.steps, self.cfg, self.text_cfg, self.variations):
             widget.valueChanged.connect(self._apply_settings)
         for box in (self.use_energy, self.use_ctmc, self.steady):
             box.toggled.connect(self._apply_settings)
@@ -172,7 +176,7 @@ class PropertiesPanel(QWidget):
     def refresh(self) -> None:
         doc, sb, sel = self._doc, self._doc.storyboard, self._doc.selection
         widgets = [self.frames, self.fps, self.agent, self.joint, self.object, self.object_type, *self.size,
-                   self.contacts, self.seed, self.steps, self.cfg, self.use_energy, self.use_ctmc, self.steady,
+                   self.contacts, self.seed, self.steps, self.cfg, self.text_cfg, self.use_energy, self.use_ctmc, self.steady,
                    self.variations, self.variation, self.take]
         for w in widgets:
             w.blockSignals(True)
@@ -209,6 +213,7 @@ class PropertiesPanel(QWidget):
         self.seed.setValue(s.seed)
         self.steps.setValue(s.steps)
         self.cfg.setValue(s.cfg)
+        self.text_cfg.setValue(s.text_cfg)
         self.use_energy.setChecked(s.use_energy)
         self.use_ctmc.setChecked(s.use_ctmc)
         self.steady.setChecked(s.steady)
@@ -285,7 +290,8 @@ class PropertiesPanel(QWidget):
 
     def _apply_settings(self, *_):
         self._doc.set_settings(replace(self._doc.settings, seed=self.seed.value(), steps=self.steps.value(),
-                                       cfg=round(self.cfg.value(), 3), use_energy=self.use_energy.isChecked(),
+                                       cfg=round(self.cfg.value(), 3), text_cfg=round(self.text_cfg.value(), 3),
+                                       use_energy=self.use_energy.isChecked(),
                                        use_ctmc=self.use_ctmc.isChecked(), steady=self.steady.isChecked(),
                                        variations=self.variations.value()))
 

@@ -117,7 +117,7 @@ def _sampler_config(args):
         return sampler_config(method="student" if args.method == "retrieval" else args.method, steps=args.steps,
                               seed=args.seed, cfg=args.cfg, variations=args.variations, energy=not args.no_energy,
                               ctmc=not args.no_ctmc, finish=not args.no_finish, steady=args.steady,
-                              preview=getattr(args, "preview", False))
+                              preview=getattr(args, "preview", False), text_cfg=getattr(args, "text_weight", None))
     except SamplerError as e:
         raise UserError(str(e)) from None
 
@@ -260,6 +260,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--method", choices=["student", "teacher-ddpm", "teacher-ddim", "retrieval"], default="student")
     s.add_argument("--text", metavar="WORDS", help="what happens, in words, instead of the storyboard's own text "
                                                    "(\"\" for none)")
+    s.add_argument("--text-weight", type=float, metavar="W",
+                   help="the text's own guidance weight: higher follows the words more where the sketch leaves "
+                        "room (default: --cfg's; a third more network time)")
     s.add_argument("--no-energy", action="store_true", help="no energy guidance (ablation)")
     s.add_argument("--no-ctmc", action="store_true", help="no CTMC phase planning (ablation)")
     s.add_argument("--no-finish", action="store_true",

@@ -36,6 +36,12 @@ class SamplerConfig:
                                     # of the student's Heun steps (models/preview.py)
     seed: int = 0
     cfg: float = 1.6                # classifier-free guidance weight
+    text_cfg: float | None = None   # the text's own guidance weight (None: cfg's; sampling/cfg.py). On
+                                    # thumbnails with a caption (40 storyboards, seeds 0/1) 5 moved the
+                                    # motion 0.28 m from the text-less one instead of 0.11, R-text@3
+                                    # 0.41/0.41 -> 0.47/0.41, FID 0.35/0.40 -> 0.31/0.37; on full
+                                    # sketches the text moves it 4 cm either way. A third more network
+                                    # time where there is a text, so not the default.
     method: str = "student"
     student_part: str = "student"   # the bundle part the student method integrates
                                     # ("controlnet_student": the parallel-ControlNets ablation)
@@ -73,12 +79,14 @@ class SamplerConfig:
             raise SamplerError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
         if self.steps < 1 or self.variations < 1:
             raise SamplerError("steps and variations must be at least 1")
+        if self.text_cfg is not None and not self.text_cfg >= 0:
+            raise SamplerError(f"the text's guidance weight must be 0 or more, not {self.text_cfg}")
 
 
 def sampler_config(*, method: str = "student", steps: int = DEFAULT_STEPS, seed: int = 0, cfg: float = 1.6,
                    variations: int = 1, energy: bool = True, ctmc: bool = True, finish: bool = True,
                    steady: bool = False, preview: bool = False, threads: int | None = None,
-                   reserve_cores: float = 0.0) -> SamplerConfig:
+                   reserve_cores: float = 0.0, text_cfg: float | None = None) -> SamplerConfig:
     """A SamplerConfig from the choices a person makes (checked: SamplerError on a bad one).
     `preview`: the fast path for motion that follows the pointer: the preview student's few
     jumps, energy guidance only on the final latent (steps and cfg unused). It is finished like
@@ -86,7 +94,7 @@ def sampler_config(*, method: str = "student", steps: int = DEFAULT_STEPS, seed:
     frames and the box floated 1.2 m from the hands (20 artist-style storyboards); without the
     last smoothing passes (limbs.py, steady.py: 14 ms) the largest pop per clip rose from
     6.4 to 9.4 cm on hand-drawn storyboards and 5.9 to 8.2 cm on synthesized ones (two seeds)."""
-    config = SamplerConfig(steps=steps, seed=seed, cfg=cfg, method=method, variations=variations,
+    config = SamplerConfig(steps=steps, seed=seed, cfg=cfg, text_cfg=text_cfg, method=method, variations=variations,
                            use_energy=energy, use_ctmc=ctmc, finish=finish,
                            guidance_max_rate=STEADY_GUIDANCE_RATE if steady else None,
                            threads=threads, reserve_cores=reserve_cores)

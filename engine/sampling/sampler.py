@@ -162,7 +162,7 @@ class _Run:
             occ = None if occupancy is None else occupancy.repeat(z.shape[0] // occupancy.shape[0], 1, 1)
             return network.velocity(z, time, cond, pos, occ)
 
-        guided = ClassifierFreeGuidance(student, 1.0 if self.cfg.few_step else self.cfg.cfg)
+        guided = ClassifierFreeGuidance(student, 1.0 if self.cfg.few_step else self.cfg.cfg, self.cfg.text_cfg)
 
         def field(z: torch.Tensor, t: float) -> torch.Tensor:
             self.evals += 1

@@ -410,6 +410,38 @@ def test_p_pins_and_unpins_the_selected_joint(qtbot, window):
     assert window.doc.tool_options.pinned == ()
 
 
+def test_the_text_weight_is_typed_and_reaches_the_sampler(qtbot, make_window, monkeypatch):
+    """At the Guidance's value the text has no weight of its own; typed above it, the sampler
+    gives the text that weight."""
+    import app.generation
+    import engine.sampling.sampler as sampler
+    window = make_window()
+    seen = []
+
+    def record(bundle, request):
+        seen.append(request.config.text_cfg)
+        return None
+        yield
+
+    monkeypatch.setattr(app.generation, "_bundle", lambda: None)
+    monkeypatch.setattr(sampler, "sample", record)
+
+    def generate():
+        with pytest.raises(StopIteration):
+            next(app.generation.start_generation(sample_storyboard(), window.doc.settings))
+
+    generate()
+    spin = window.properties.text_cfg
+    spin.setFocus()
+    qtbot.waitUntil(spin.hasFocus)
+    qtbot.keyClick(spin, Qt.Key_A, Qt.ControlModifier)
+    qtbot.keyClicks(spin, "4")
+    qtbot.keyClick(spin, Qt.Key_Return)
+    assert window.doc.settings.text_cfg == 4.0
+    generate()
+    assert seen == [None, 4.0]
+
+
 def test_the_storyboard_text_is_typed_undoable_and_reaches_the_generator(qtbot, make_window, monkeypatch):
     """Typed in Properties (Enter applies), one undo step, saved with the storyboard, and what
     the sampler is asked to generate."""

@@ -115,11 +115,10 @@ ABLATIONS = {"use_ctmc": False, "use_temporal_bias": False, "trajectory_only": T
              "use_latent": False, "finish": False, "langevin_steps": 3}
 
 
-@pytest.fixture(scope="module")
-def lively_bundle():
+def lively(config: ModelConfig):
     """An untrained bundle whose zero-initialised layers (output heads, the attention bias) are
     randomised too, so that every input reaches the output."""
-    bundle = untrained_bundle(replace(ModelConfig.default(), schedule=VPSchedule(steps=12)))
+    bundle = untrained_bundle(replace(config, schedule=VPSchedule(steps=12)))
     generator = torch.Generator().manual_seed(0)
     with torch.no_grad():
         for part in bundle.parts.values():
@@ -127,6 +126,11 @@ def lively_bundle():
                 if p.abs().sum() == 0:
                     p.copy_(0.1 * torch.randn(p.shape, generator=generator))
     return bundle
+
+
+@pytest.fixture(scope="module")
+def lively_bundle():
+    return lively(ModelConfig.default())
 
 
 @pytest.mark.parametrize("switch", list(ABLATIONS))
@@ -150,6 +154,23 @@ def test_each_ablation_switch_changes_the_motion(lively_bundle, storyboard, swit
         assert "latent" not in energies and "keyframe" in energies
     if switch == "langevin_steps":
         assert result.network_evals == base.network_evals + 3
+
+
+def test_the_texts_own_weight_moves_the_motion_only_where_there_is_a_text(storyboard):
+    reader = lively(ModelConfig.default().with_text())
+    config = SamplerConfig(steps=3, seed=1)
+    weighted = replace(config, text_cfg=4.0)
+    assert storyboard.text
+    _, plain = drain(sample(reader, storyboard, config))
+    _, stronger = drain(sample(reader, storyboard, weighted))
+    assert stronger.network_evals == plain.network_evals          # the extra pass rides in the same batch
+    assert np.abs(stronger.clips[0].joints - plain.clips[0].joints).max() > 1e-4
+    silent = replace(storyboard, text="")
+    _, a = drain(sample(reader, silent, config))
+    _, b = drain(sample(reader, silent, weighted))
+    np.testing.assert_array_equal(a.clips[0].joints, b.clips[0].joints)
+    with pytest.raises(SamplerError, match="text's guidance weight"):
+        sampler_config(text_cfg=-1.0)
 
 
 def test_one_person_no_object_odd_length(bundle, storyboard):

@@ -58,6 +58,38 @@ def test_cfg_wrapper_semantics_and_single_batch():
     assert calls == [2]
 
 
+def test_cfg_gives_the_text_its_own_weight():
+    """uncond + w (sketch - uncond) + w_text (sketch and text - sketch), in one batch of 3B; a
+    storyboard without text, or w_text == w, is the plain guidance."""
+    calls = []
+
+    def field(z, t, cond, pos):   # uncond 1, the sketch adds embed[0], its text 10 per word
+        calls.append(z.shape[0])
+        keep = (~cond.drop).float()[:, None, None, None]
+        words = cond.text_mask.sum(1)[:, None, None, None]
+        return z * 0 + 1.0 + keep * (cond.embed[:, :1, None, None] + 10.0 * words)
+
+    def conditioning(words):
+        return Conditioning(residual=torch.zeros(2, 4, 3, 8), temporal_bias=torch.zeros(2, 4, 4),
+                            embed=torch.tensor([[2.0], [3.0]]), drop=torch.zeros(2, dtype=torch.bool),
+                            text=torch.zeros(2, 3, 4), text_mask=torch.tensor(words))
+
+    z, t = torch.zeros(2, 4, 3, 8), torch.rand(2)
+    out = ClassifierFreeGuidance(field, 1.5, text_weight=4.0)(z, t, conditioning([[1.0, 1.0, 0.0], [0.0, 0.0, 0.0]]))
+    assert calls == [6]
+    assert torch.allclose(out[0], torch.full_like(out[0], 1 + 1.5 * 2.0 + 4.0 * 20.0))
+    assert torch.allclose(out[1], torch.full_like(out[1], 1 + 1.5 * 3.0))   # no text of its own
+    calls.clear()
+    out = ClassifierFreeGuidance(field, 1.0, text_weight=3.0)(z, t, conditioning([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+    sketch = torch.tensor([2.0, 3.0])[:, None, None, None]
+    assert calls == [4] and torch.allclose(out, torch.full_like(out, 1 + 3.0 * 10.0) + sketch)
+    calls.clear()
+    no_text = conditioning([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    plain = ClassifierFreeGuidance(field, 1.5)(z, t, no_text)
+    assert torch.equal(ClassifierFreeGuidance(field, 1.5, text_weight=4.0)(z, t, no_text), plain)
+    assert calls == [4, 4]
+
+
 def test_cfg_on_backbone_uses_dropped_branch():
     torch.manual_seed(0)
     teacher = DiffusionTeacher(TemporalUNet(TINY))
