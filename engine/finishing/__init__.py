@@ -10,8 +10,8 @@ that keep each person's bone lengths:
    joints freely, so bones stretch a little from frame to frame);
 2. keyposes and pelvis paths, by motion warping (warp.py);
 3. feet standing on the ground, planted while in stance (where a keypose in the stance has the
-   foot), stepping between plants, the body lowering where it stands too tall for its planted
-   legs (feet.py);
+   foot), stepping between plants (one foot at a time: walk.py), the body lowering where it
+   stands too tall for its planted legs (feet.py);
 4. the object as a rigid body that moves only in the hands that hold it, and the arms reaching
    its grips (or the partner's hand) over every contact span (contacts.py); a holder the grip is
    beyond arm's reach of steps towards it first, before the feet are planted; for an object the

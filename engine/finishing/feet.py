@@ -10,8 +10,9 @@ detection reads absolute heights.
 A foot that glides along the floor instead of stepping (the generator's usual fault) gets
 steps: its stance is cut when the foot has drifted `max_drift` from where it was planted, and
 a gap between two stances that never leaves the floor becomes a lifted arc from one plant to
-the next (the second foot's step waits for the first to land, so people walk, not hop). Feet
-that already swing clear of the floor keep their own swing; good motion passes unchanged.
+the next (the second foot's step waits for the first to land, so people walk, not hop; where the
+steps still lift both feet at once, walk.py makes the stretch a walk). Feet that already swing
+clear of the floor keep their own swing; good motion passes unchanged.
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
 from .blend import smooth_correction
 from .keys import closeness_to_keys
+from .walk import step_frames_for, walk_through_flights
 
 HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
 KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
@@ -61,6 +63,10 @@ class FeetConfig:
     max_step_frames: int = 8         # a longer gap is no step: the foot keeps its own path
     step_pop: float = 0.03           # m; a made-up step takes frames enough that the eased foot
                                      # jolts (spikes off its neighbours' midpoint) at most this much
+    walk_step: float = 0.6           # m the pelvis travels per step where made-up steps would lift
+                                     # both feet at once and the stretch is walked (walk.py) ...
+    walk_pop: float = 0.05           # m; ... if that jolts a foot at most this much, ...
+    max_widen: int = 3               # ... the stretch widened by up to this many standing frames each way
     settle_sigma: float = 3.0        # frames; smoothing of the vertical settle shift
     max_crouch: float = 0.1          # m; most a body lowers so its legs reach their plants
     leg_extension: float = 0.98      # share of a leg's length its planted reach may take: a knee kept
@@ -146,17 +152,6 @@ def _plant_spot(foot: np.ndarray, start: int, stop: int, keys: Sequence[int]) ->
     return foot[held[0], [0, 2]] if held else foot[start:stop, [0, 2]].mean(0)
 
 
-def _step_frames_for(distance: float, config: FeetConfig) -> int:
-    """Frames a made-up step of `distance` m needs so that its eased path (smoothstep from plant
-    to plant) spikes at most config.step_pop, within [step_frames, max_step_frames]."""
-    for frames in range(config.step_frames, config.max_step_frames):
-        s = np.arange(frames + 2) / (frames + 1)
-        path = np.concatenate([[0.0], smoothstep(s), [1.0]])
-        if distance * np.abs(path[1:-1] - 0.5 * (path[:-2] + path[2:])).max() <= config.step_pop:
-            return frames
-    return config.max_step_frames
-
-
 def _swings(foot: np.ndarray, stop: int, start: int, config: FeetConfig) -> bool:
     """Whether the foot (N, 3) lifts itself off the floor between a plant's stop and the next
     one's start (else _foot_goal makes up a step there)."""
@@ -166,7 +161,7 @@ def _swings(foot: np.ndarray, stop: int, start: int, config: FeetConfig) -> bool
 def _with_room_to_step(intervals: list[tuple[int, int]], foot: np.ndarray, config: FeetConfig,
                        keys: Sequence[int] = (), busy: np.ndarray | None = None) -> list[tuple[int, int]]:
     """Plants shortened so that the foot has frames enough to step from one to the next without
-    a jolt (_step_frames_for their distance): held to the ends of their stances, two plants
+    a jolt (walk.step_frames_for their distance): held to the ends of their stances, two plants
     0.77 m apart left a gliding foot 4 frames to cover it (a 7 cm spike of the foot, 11 cm of the
     knee). Each frame is taken from the plant the foot has left further behind at that frame; a
     plant keeps min_stance_frames, its key frames and the frames the other foot is off (busy),
@@ -181,7 +176,7 @@ def _with_room_to_step(intervals: list[tuple[int, int]], foot: np.ndarray, confi
             continue   # a swing of the foot's own keeps its own timing
         last_key = max((k for k in keys if s1 <= k < e1), default=-1)
         first_key = min((k for k in keys if s2 <= k < e2), default=len(foot))
-        need = _step_frames_for(apart, config)
+        need = step_frames_for(apart, config)
         strict = True    # first while the other foot stands; then a brief hop beats a jolt
         while s2 - e1 < need:
             can_end = e1 - 1 >= s1 + config.min_stance_frames and e1 - 1 > last_key and (free[e1 - 1] or not strict)
@@ -285,6 +280,7 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
                 busy[start:stop] = False
             goals.append(_foot_goal(pose[:, FEET[side]], intervals, config, held) if intervals
                          else pose[:, FEET[side]])
+        goals = walk_through_flights(goals, pose, held, config)
         crouch = _crouch(pose, goals, config)
         if held:   # the keyposes stand as the warp placed them (their legs reach already)
             crouch *= 1.0 - closeness_to_keys(len(pose), held, config.blend_frames)
