@@ -5,7 +5,8 @@ the data folder, held by a lock file while the window lives: a second window nev
 live window's work for a crash's, nor deletes it. Every edit, and every new take, schedules a
 save a moment later (`delay_ms`: a burst of edits writes once); the storyboard is turned into
 JSON on the GUI thread (a snapshot, cheap) and written on a background thread, atomically, with
-the take's motion beside it. A kill at any moment loses at most the last second. A clean save
+the document's takes beside it (those of the file it was opened from too, and any motion shown
+that is not a take). A kill at any moment loses at most the last second. A clean save
 clears the session; a deliberate close removes it. At start, a session folder whose lock nobody
 holds is a crash's, and the app offers to reopen it; one that cannot be read is set aside
 (renamed), reported, never raised.
@@ -24,6 +25,7 @@ from PySide6.QtCore import QLockFile, QObject, QTimer
 from engine.atomic import write_text
 from engine.clip import MotionClip
 from engine.storyboard import Storyboard
+from engine.takes import Take, load_takes, save_takes
 
 from .document import Document
 
@@ -31,7 +33,8 @@ SESSIONS = "sessions"
 LOCK = "lock"
 RECOVERY_FILE = "recovery.storyboard.json"
 SOURCE_NOTE = "recovery.source.txt"
-TAKE_FILE = "recovery.take.npz"
+TAKE_FILE = "recovery.take.npz"       # the motion shown when it is no take (a preview, a recovery)
+TAKES_FILE = "recovery.takes.npz"     # every take (engine.takes)
 
 
 @dataclass
@@ -39,12 +42,13 @@ class Recovery:
     folder: Path
     source: Path | None      # the file the unsaved work belongs to, None for an untitled document
 
-    def load(self) -> tuple[Storyboard, MotionClip | None]:
-        """The storyboard and, when one was generated, its take (StoryboardError, ClipError,
-        OSError when damaged)."""
+    def load(self) -> tuple[Storyboard, list[Take], MotionClip | None]:
+        """The storyboard, its takes and the motion shown if it was no take (StoryboardError,
+        TakesError, ClipError, OSError when damaged)."""
         storyboard = Storyboard.load(self.folder / RECOVERY_FILE)
-        take = self.folder / TAKE_FILE
-        return storyboard, MotionClip.load(take) if take.exists() else None
+        takes, shown = self.folder / TAKES_FILE, self.folder / TAKE_FILE
+        return (storyboard, load_takes(takes) if takes.exists() else [],
+                MotionClip.load(shown) if shown.exists() else None)
 
     def discard(self) -> None:
         shutil.rmtree(self.folder, ignore_errors=True)
@@ -91,6 +95,7 @@ class Autosaver(QObject):
         self._timer.timeout.connect(self.save_now)
         self._pending: tuple | None = None        # the newest snapshot the writer has not written
         self._written_take: MotionClip | None = None
+        self._written_takes: tuple = ()            # (id, chosen) of each take written
         self._wake = threading.Condition()
         self._stopping = False
         self._writer = threading.Thread(target=self._write_loop, name="autosave", daemon=True)
@@ -105,8 +110,10 @@ class Autosaver(QObject):
         doc = self._doc
         if not doc.dirty:
             return
+        shown = doc.takes[doc.take_index].clip if 0 <= doc.take_index < len(doc.takes) else None
         with self._wake:
-            self._pending = (doc.storyboard.to_json(), str(doc.path or ""), doc.clip)
+            self._pending = (doc.storyboard.to_json(), str(doc.path or ""), None if doc.clip is shown else doc.clip,
+                             list(doc.takes))
             self._wake.notify()
 
     def flush(self, timeout_s: float = 10.0) -> None:
@@ -121,8 +128,8 @@ class Autosaver(QObject):
         self._timer.stop()
         with self._wake:
             self._pending = None
-            self._written_take = None
-            for name in (RECOVERY_FILE, SOURCE_NOTE, TAKE_FILE):
+            self._written_take, self._written_takes = None, ()
+            for name in (RECOVERY_FILE, SOURCE_NOTE, TAKE_FILE, TAKES_FILE):
                 (self.session / name).unlink(missing_ok=True)
 
     def stop(self) -> None:
@@ -145,15 +152,14 @@ class Autosaver(QObject):
                     self._wake.wait()
                 if self._stopping:
                     return
-                text, source, take = self._pending
                 try:
-                    self._write(text, source, take)
+                    self._write(*self._pending)
                 except OSError as e:
                     print(f"autosave skipped: {e}")
                 self._pending = None
                 self._wake.notify_all()
 
-    def _write(self, text: str, source: str, take: MotionClip | None) -> None:
+    def _write(self, text: str, source: str, take: MotionClip | None, takes: list[Take]) -> None:
         """Under the lock of the condition: `clear` never races a half-finished round."""
         if self._lock is None:
             self.session.mkdir(parents=True, exist_ok=True)
@@ -166,5 +172,12 @@ class Autosaver(QObject):
             else:
                 take.save(self.session / TAKE_FILE)
             self._written_take = take
+        signature = tuple((id(t), t.chosen) for t in takes)
+        if signature != self._written_takes:
+            if takes:
+                save_takes(takes, self.session / TAKES_FILE)
+            else:
+                (self.session / TAKES_FILE).unlink(missing_ok=True)
+            self._written_takes = signature
         write_text(self.session / SOURCE_NOTE, source)
         write_text(self.session / RECOVERY_FILE, text)

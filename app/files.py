@@ -254,14 +254,15 @@ class FileActions:
             recovery.discard()
             return False
         try:
-            storyboard, take = recovery.load()
-        except (StoryboardError, ClipError, OSError) as e:
+            storyboard, takes, shown = recovery.load()
+        except (StoryboardError, TakesError, ClipError, OSError) as e:
             kept = recovery.set_aside()
             self.error(f"The unsaved work could not be read ({str(e).splitlines()[0]}); it is kept in {kept}.")
             return False
         self.doc.replace_storyboard(storyboard, recovery.source, dirty=True)
-        if take is not None:
-            self.doc.set_result([take], take.phase)
+        self.doc.set_takes(takes)
+        if shown is not None:
+            self.doc.set_result([shown], shown.phase)
         recovery.discard()
         self.autosaver.save_now()          # the recovered work is this window's now
         self.statusBar().showMessage("Recovered unsaved work; save it to keep it.", 8000)

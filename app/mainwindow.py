@@ -400,7 +400,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         session.outdatedChanged.connect(lambda outdated: self.viewport.set_notice(OUTDATED_NOTICE if outdated else ""))
         session.runningChanged.connect(self._on_running)
         session.finished.connect(self._on_generated)
-        session.failed.connect(lambda message: self.error(f"Generation failed: {message}"))
+        session.failed.connect(self._on_failed)
         session.cancelled.connect(lambda: self.statusBar().showMessage("Generation cancelled.", 5000))
         self._on_storyboard()
         self._on_frame(doc.frame)
@@ -469,6 +469,10 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.progress.setValue(event.step + 1)
         energies = "  ".join(f"{k} {v:.3g}" for k, v in list(event.energies.items())[:4])
         self.statusBar().showMessage(f"Generating: step {event.step + 1} / {event.num_steps}  t={event.t:.2f}  {energies}")
+
+    def _on_failed(self, message: str) -> None:
+        self.statusBar().showMessage("Generation failed; the motion shown is what it was.", 15000)
+        self.error(f"Generation failed: {message}")
 
     def _on_generated(self, result: GenerationResult) -> None:
         count = len(result.clips)

@@ -49,6 +49,9 @@ class GenerationSession(QObject):
         self.latest: StepEvent | None = None          # the newest streamed step while running
         self._pending: tuple[Storyboard, GenerationSettings] | None = None   # to run when the current ends
         self._outdated = False
+        self._document_version = 0   # bumped when the document is replaced (new, open, recover) ...
+        self._run_version = 0        # ... and what it was when the current run started: its result
+                                     # belongs to the storyboard it was asked for, not to the next one
         self._runner.runningChanged.connect(self.runningChanged)
         self._runner.step.connect(self._on_step)
         self._runner.finished.connect(self._on_finished)
@@ -56,6 +59,7 @@ class GenerationSession(QObject):
         self._runner.cancelled.connect(self._on_cancelled)
         document.storyboardChanged.connect(self._update_outdated)
         document.resultChanged.connect(self._update_outdated)
+        document.replaced.connect(self._on_replaced)
 
     @property
     def running(self) -> bool:
@@ -100,6 +104,7 @@ class GenerationSession(QObject):
             return
         (storyboard, settings), self._pending = self._pending, None
         self.storyboard, self.settings, self.latest = storyboard, settings, None
+        self._run_version = self._document_version
         generate = self.generate
         self._runner.start(lambda: generate(storyboard, settings))
 
@@ -111,9 +116,20 @@ class GenerationSession(QObject):
         self.latest = event
         self.stepped.emit(event)
 
+    def _on_replaced(self) -> None:
+        """A new document: what runs or waits was asked for the old one."""
+        self._document_version += 1
+        self._pending = None
+        if self.running:
+            self._runner.cancel()
+
     def _on_finished(self, result: GenerationResult) -> None:
         clips = list(result.clips)
         self.latest = None
+        if self._run_version != self._document_version:   # it ended before the cancel reached it
+            self.cancelled.emit()
+            self._start_pending()
+            return
         if self.settings.preview or not clips:
             self._doc.set_result(clips, clips[0].phase if clips else None, source=self.storyboard)
         else:

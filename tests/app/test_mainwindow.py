@@ -169,6 +169,7 @@ def test_sampler_error_becomes_a_dialog(qtbot, make_window, dialogs):
     assert len(dialogs.errors) == 1 and "ran out of patience" in dialogs.errors[0]
     assert window.doc.storyboard.to_json() == before and window.doc.clip is None
     assert window.act_generate.isEnabled()
+    assert "failed" in window.statusBar().currentMessage()      # no longer "Generating..."
 
 
 KILLED_WINDOW = """
@@ -227,18 +228,32 @@ def test_a_second_window_leaves_a_live_windows_work_alone(qtbot, make_window, tm
     assert (first.autosaver.session / "recovery.storyboard.json").exists()
 
 
-def test_a_take_is_autosaved_and_recovered_with_its_storyboard(qtbot, make_window, tmp_path, dialogs):
+def test_takes_are_autosaved_and_recovered_with_their_storyboard(qtbot, make_window, tmp_path, dialogs):
+    """A file saved with two takes, reopened, a third generated, then the window dies: the
+    recovered document holds all three, and saving it keeps them."""
     window = make_window(autosave_delay_ms=10)
     load_sample(window)
+    for _ in range(2):
+        with qtbot.waitSignal(window.session.finished, timeout=10_000):
+            window.generate()
+    assert window.save_to(tmp_path / "board.json")
+    assert window.open_file(str(tmp_path / "board.json")) and len(window.doc.takes) == 2
     window.doc.undo_stack.push(cmd.DeleteKeypose(window.doc, "A", 0))
     with qtbot.waitSignal(window.session.finished, timeout=10_000):
         window.generate()
-    take = window.autosaver.session / "recovery.take.npz"
-    qtbot.waitUntil(take.exists, timeout=3000)
+    window.autosaver.save_now()                                   # what its timer does a moment later
     window.autosaver.flush()
-    storyboard, clip = Recovery(window.autosaver.session, None).load()
+    storyboard, takes, shown = Recovery(window.autosaver.session, None).load()
     assert storyboard.to_json() == window.doc.storyboard.to_json()
-    assert clip is not None and clip.num_frames == window.doc.clip.num_frames
+    assert len(takes) == 3 and shown is None                      # the motion shown is the newest take
+    window.autosaver._timer.stop()
+    window.autosaver._lock.unlock()                               # as if its process had died
+    fresh = make_window()
+    dialogs.answer = dialogs.answer.Yes
+    assert fresh.offer_recovery()
+    assert len(fresh.doc.takes) == 3 and fresh.doc.clip is not None
+    assert fresh.save_to(tmp_path / "board.json")
+    assert fresh.open_file(str(tmp_path / "board.json")) and len(fresh.doc.takes) == 3
 
 
 def test_unreadable_work_is_set_aside_and_reported(qtbot, make_window, tmp_path, dialogs):

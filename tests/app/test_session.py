@@ -68,3 +68,21 @@ def test_an_empty_storyboard_says_what_is_missing(qtbot):
     session = GenerationSession(doc, FakeSampler())
     problem = session.start(GenerationSettings())
     assert problem and "keypose" in problem and "path" in problem and not session.running
+
+
+def test_a_run_for_a_document_that_was_replaced_leaves_the_new_one_alone(qtbot):
+    """New or Open while a generation runs: its motion never lands in the next document, whether
+    the cancel reaches it between steps or it ends first."""
+    for cancel_arrives in (True, False):
+        sampler = FakeSampler(delay_s=0.05)
+        doc, session = make_session(sampler)
+        if not cancel_arrives:
+            session._runner.cancel = lambda: None
+        with qtbot.waitSignal(session.runningChanged, timeout=10_000, check_params_cb=lambda running: not running):
+            session.start(GenerationSettings(steps=6))
+            qtbot.waitUntil(lambda: len(sampler.yielded) >= 1, timeout=5000)
+            doc.replace_storyboard(sample_storyboard(), None)
+        assert doc.takes == [] and doc.clips == [] and doc.clip is None
+        with qtbot.waitSignal(session.finished, timeout=10_000):   # and the next one runs as usual
+            assert session.start(GenerationSettings(steps=2)) is None
+        assert len(doc.takes) == 1
