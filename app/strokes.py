@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.geometry.polylines import resample_polyline
+from engine.storyboard import MAX_POLYLINE_POINTS
 
 SPACING = 0.04   # metres between stored stroke points: smooth enough, small files
 
@@ -22,9 +23,10 @@ def smooth(raw: np.ndarray, window: int = 5) -> np.ndarray:
 
 
 def resample_even(points: np.ndarray, spacing: float = SPACING) -> np.ndarray:
-    """(L, 2) -> (M, 2) points `spacing` metres apart along the polyline (M >= 2), ends kept."""
+    """(L, 2) -> (M, 2) points `spacing` metres apart along the polyline (M >= 2), ends kept; a
+    stroke too long for that many (a minute of scribbling) takes the most a file may hold."""
     length = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=-1)))
-    return resample_polyline(points, max(2, int(np.ceil(length / spacing)) + 1))
+    return resample_polyline(points, min(max(2, int(np.ceil(length / spacing)) + 1), MAX_POLYLINE_POINTS))
 
 
 def clean_stroke(raw: np.ndarray, spacing: float = SPACING) -> np.ndarray:

@@ -28,6 +28,10 @@ SKETCH_LIMIT_M = 100.0   # |u|, |v| and the camera target's coordinates (the sch
 MAX_SECONDS = 120.0      # the longest clip the generator is asked for
 MAX_FILE_CHARS = 16_000_000  # a storyboard file; the largest real ones are a few hundred kB
 MAX_INTEGER = 10 ** 9    # frames, spans and anchors are far below; a longer number is an error
+MAX_POLYLINE_POINTS = 4096   # a stroke, floor path or outline; the app keeps strokes' points 4 cm
+                             # apart (a 160 m stroke). A file of 200000 points took 9 s to check
+POLYLINES = (("trajectories", "points"), ("trajectories", "floor"), ("object_keys", "outline"),
+             ("object_paths", "points"))
 SPANS = ("trajectories", "object_paths", "contacts")   # the Storyboard lists with start and end frames
 FLOOR_PATH_HEIGHT = REST_PELVIS_HEIGHT   # m: the height a floor-plan path is seen at from the camera
 
@@ -208,10 +212,11 @@ class Storyboard:
     @classmethod
     def from_dict(cls, d) -> "Storyboard":
         _check_finite(d, "")
+        _check_polyline_sizes(d)
         _validate_schema(d)
         sb = cls(fps=float(d["fps"]), length=int(d["length"]), text=d.get("text", ""),
                  camera=StoryboardCamera.from_dict(d["camera"]))
-        sb.agents = [Agent(a["id"], a.get("name", ""), a.get("color") or AGENT_COLORS[i % 4])
+        sb.agents = [Agent(a["id"], a.get("name", ""), _long_hex(a.get("color") or AGENT_COLORS[i % 4]))
                      for i, a in enumerate(d["agents"])]
         for i, o in enumerate(d.get("objects", [])):
             size = tuple(o.get("size", DEFAULT_SIZES[o["type"]]))
@@ -435,11 +440,32 @@ def _describe(e) -> str:
         if isinstance(inst, list) and e.context:   # a point, but a bad one: say what is wrong with it
             return _describe(min(e.context, key=lambda sub: sub.validator == "type"))
         return f"{where}: a joint is either [u, v] or null"
+    if e.validator == "pattern" and where.endswith(".color"):
+        return f"{where}: {json.dumps(inst)[:40]} is not a colour; write it #rrggbb (or #rgb, #rrggbbaa)"
     if e.validator in BOUNDS and isinstance(inst, (int, float)):
         unit = " m" if abs(e.validator_value) == SKETCH_LIMIT_M else ""
         return f"{where}: {inst:g} is out of range ({BOUNDS[e.validator]} {e.validator_value:g}{unit})"
     short = json.dumps(inst)[:40] if not isinstance(inst, (dict, list)) else type(inst).__name__
     return f"{where}: {short} is not valid here ({e.validator} {json.dumps(e.validator_value)[:60]})"
+
+
+def _check_polyline_sizes(d) -> None:
+    """A one-line error for a polyline too long to check or draw in good time (before the
+    schema, which takes 40 us a point)."""
+    if not isinstance(d, dict):
+        return
+    for group, field in POLYLINES:
+        items = d.get(group)
+        for i, item in enumerate(items if isinstance(items, list) else []):
+            points = item.get(field) if isinstance(item, dict) else None
+            if isinstance(points, list) and len(points) > MAX_POLYLINE_POINTS:
+                raise StoryboardError(f"{group}[{i}].{field}: {len(points)} points; a stroke has at most "
+                                      f"{MAX_POLYLINE_POINTS}")
+
+
+def _long_hex(color: str) -> str:
+    """'#rgb' -> '#rrggbb' (what the views read); the other forms as they are."""
+    return "#" + "".join(c * 2 for c in color[1:]) if len(color) == 4 else color
 
 
 def _check_finite(value, where: str) -> None:

@@ -5,7 +5,7 @@ import pytest
 from app import commands as cmd
 from app.document import Document
 from app.strokes import clean_stroke, splice
-from engine.storyboard import Contact, Storyboard, Trajectory
+from engine.storyboard import MAX_POLYLINE_POINTS, Contact, Storyboard, Trajectory
 
 from .fakes import sample_storyboard
 
@@ -99,6 +99,17 @@ def test_stroke_is_smoothed_and_evenly_resampled():
     steps = np.linalg.norm(np.diff(out, axis=0), axis=-1)
     assert np.allclose(steps, steps.mean(), rtol=0.15)  # chords of an even arc-length split
     assert np.abs(out[1:-1, 1]).max() < np.abs(raw[:, 1]).max()
+
+
+def test_a_minute_of_scribbling_is_a_stroke_a_file_can_hold():
+    """Back and forth over 2 m for 400 m of pen: no more points than a storyboard may hold, so
+    the file it is saved in opens again."""
+    raw = np.stack([2.0 * np.abs(np.sin(np.linspace(0, 200 * np.pi, 20_000))), np.linspace(0, 1, 20_000)], -1)
+    out = clean_stroke(raw)
+    assert len(out) == MAX_POLYLINE_POINTS
+    sb = sample_storyboard()
+    sb.trajectories[0].points = out
+    assert len(Storyboard.from_json(sb.to_json()).trajectories[0].points) == MAX_POLYLINE_POINTS
 
 
 def test_splice_replaces_only_the_redrawn_part():

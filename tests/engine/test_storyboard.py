@@ -132,6 +132,11 @@ BROKEN = [
     ("objects.0.size", [0.4, 0.3, 0], "objects[0].size[2]: 0 is out of range (more than 0)"),
     ("fps", 1000, "fps: 1000 is out of range (at most 240)"),
     ("length", 3000, "length: 3000 frames at 20 fps is 150 s; clips are at most 120 s"),
+    # A colour the views cannot draw (it blanked the 3D view): named, not hex.
+    ("agents.0.color", "red", 'agents[0].color: "red" is not a colour; write it #rrggbb'),
+    # Too long to check or draw in good time (200000 points froze the app for 9 s).
+    ("trajectories.0.points", [[0.0, 0.0]] * 200_000,
+     "trajectories[0].points: 200000 points; a stroke has at most 4096"),
 ]
 
 
@@ -140,6 +145,11 @@ def test_broken_files_name_the_field(path, value, message):
     with pytest.raises(StoryboardError) as e:
         Storyboard.from_dict(broken(path, value))
     assert str(e.value).startswith(message) and "\n" not in str(e.value)
+
+
+def test_a_short_hex_colour_reads_as_the_long_one():
+    assert Storyboard.from_dict(broken("agents.0.color", "#f80")).agents[0].color == "#ff8800"
+    assert Storyboard.from_dict(broken("agents.0.color", "#ff880080")).agents[0].color == "#ff880080"
 
 
 def test_nan_and_infinity_are_rejected():
