@@ -119,20 +119,20 @@ def generated_paths(clip: MotionClip, storyboard: Storyboard | None,
 def lift_storyboard_paths(storyboard: Storyboard, clip: MotionClip | None = None) -> list[Polyline]:
     """Storyboard strokes as 3D polylines: each sketch point is cast through the storyboard camera
     onto the horizontal plane at the joint's height (its mean height in the clip over the stroke's
-    frames, or its rest-pose height without a clip); object paths onto the object's height."""
+    frames, or its rest-pose height without a clip or frames of it there); object paths onto the
+    object's height."""
     rest = rest_pose()
     cam = storyboard.camera
     out = []
     for t in storyboard.trajectories:
         h, j = storyboard.agent_index(t.agent), JOINT_INDEX[t.joint]
-        if clip is not None and h < clip.num_humans:
-            height = float(clip.joints[t.start:t.end + 1, h, j, 1].mean())
-        else:
-            height = float(rest[j, 1])
+        heights = clip.joints[t.start:t.end + 1, h, j, 1] if clip is not None and h < clip.num_humans else []
+        height = float(np.mean(heights)) if len(heights) else float(rest[j, 1])   # (a clip that ends before it)
         out.append(Polyline(cam.unproject_to_height(t.points, height),
                             storyboard.agents[h].color or AGENT_COLORS[h % len(AGENT_COLORS)]))
     for p in storyboard.object_paths:
         o = storyboard.object_index(p.object)
-        height = float(clip.obj_pose[p.start:p.end + 1, o, 1].mean()) if clip is not None and o < clip.num_objects else 0.0
+        heights = clip.obj_pose[p.start:p.end + 1, o, 1] if clip is not None and o < clip.num_objects else []
+        height = float(np.mean(heights)) if len(heights) else 0.0
         out.append(Polyline(cam.unproject_to_height(p.points, height), OBJECT_PATH_COLOR))
     return out

@@ -167,3 +167,17 @@ def test_sheets_look_across_the_line_between_the_people(angle):
     right = clip_camera(clip, None, 1.5).basis()[0]
     pelvis = clip.joints[0, :, 0]
     assert (pelvis[1] - pelvis[0]) @ right == pytest.approx(2.0, abs=1e-6)   # side by side, first on the left
+
+
+def test_strokes_of_a_longer_storyboard_than_the_motion_lie_at_rest_height():
+    """The clip made before the storyboard was lengthened ends before a stroke starts (an undone
+    length change): the stroke lies at the joint's rest height, not at NaN."""
+    from dataclasses import replace
+
+    from engine.render.scene import lift_storyboard_paths
+    clip = carry_clip()
+    storyboard = carry_storyboard(clip)
+    late = [replace(t, start=clip.num_frames + 5, end=clip.num_frames + 20) for t in storyboard.trajectories]
+    longer = replace(storyboard, length=clip.num_frames + 40, trajectories=late)
+    paths = lift_storyboard_paths(longer, clip)
+    assert paths and all(np.isfinite(p.points).all() for p in paths)
