@@ -11,7 +11,7 @@ from engine.camera import StoryboardCamera
 from engine.controls import build_controls
 from engine.geometry.polylines import resample_polyline
 from engine.skeleton import JOINT_INDEX, rest_pose
-from engine.storyboard import Storyboard, StoryboardError, nu
+from engine.storyboard import AGENT_COLORS, Storyboard, StoryboardError, nu
 
 GOOD = {
     "format": "sketch2colab-storyboard", "version": 1, "fps": 20, "length": 60,
@@ -150,6 +150,7 @@ def test_broken_files_name_the_field(path, value, message):
 def test_a_short_hex_colour_reads_as_the_long_one():
     assert Storyboard.from_dict(broken("agents.0.color", "#f80")).agents[0].color == "#ff8800"
     assert Storyboard.from_dict(broken("agents.0.color", "#ff880080")).agents[0].color == "#ff880080"
+    assert Storyboard.from_dict(broken("agents.0.color", "")).agents[0].color == AGENT_COLORS[0]   # none given
 
 
 def test_nan_and_infinity_are_rejected():
