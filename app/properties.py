@@ -176,8 +176,8 @@ class PropertiesPanel(QWidget):
     def refresh(self) -> None:
         doc, sb, sel = self._doc, self._doc.storyboard, self._doc.selection
         widgets = [self.frames, self.fps, self.agent, self.joint, self.object, self.object_type, *self.size,
-                   self.contacts, self.seed, self.steps, self.cfg, self.text_cfg, self.use_energy, self.use_ctmc, self.steady,
-                   self.variations, self.variation, self.take]
+                   self.contacts, self.seed, self.steps, self.cfg, self.text_cfg, self.use_energy, self.use_ctmc,
+                   self.steady, self.variations, self.variation, self.take]
         for w in widgets:
             w.blockSignals(True)
         self.fps.setValue(sb.fps)
