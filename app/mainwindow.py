@@ -36,6 +36,7 @@ from .properties import PropertiesPanel
 from .shortcuts import WindowShortcutsFirst
 from .session import GenerationSession
 from .timeline import PlaybackControls, Timeline
+from .toolbar import MainToolbar
 from .view_options import LABELS as VIEW_LABELS
 from .view_options import ViewOptions, ViewOptionsModel
 from .viewport import Viewport
@@ -339,28 +340,10 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         return n if n > 0 else None
 
     def _build_toolbar(self) -> None:
-        bar = self.addToolBar("Tools")
-        bar.setObjectName("Tools")
-        bar.setMovable(False)
-        bar.setToolButtonStyle(Qt.ToolButtonTextOnly)
-        bar.addActions(list(self.tool_actions.values()))
-        bar.addSeparator()
-        bar.addActions([self.act_copy_pose, self.act_mirror])
-        bar.addSeparator()
-        bar.addActions([self.act_undo, self.act_redo])
-        spacer = QWidget()
-        spacer.setSizePolicy(QSizePolicy.Expanding, QSizePolicy.Preferred)
-        bar.addWidget(spacer)
-        bar.addAction(self.act_generate)
-        bar.addAction(self.act_cancel)
-        bar.widgetForAction(self.act_generate).setObjectName("generate")  # the primary action stands out
-        self.setStyleSheet("QToolBar { spacing: 2px; padding: 2px; }"
-                           "QToolBar QToolButton { padding: 4px 9px; }"
-                           "QToolBar QToolButton:checked { background: #2e86ab; color: white; border-radius: 3px; }"
-                           "QToolButton#generate { background: #3c8d5a; color: white; font-weight: bold;"
-                           " border-radius: 3px; padding: 4px 14px; }"
-                           "QToolButton#generate:hover { background: #347d4f; }"
-                           "QToolButton#generate:disabled { background: #b9c9bd; color: #f4f4f4; }")
+        self.toolbar = MainToolbar(self, [list(self.tool_actions.values()), [self.act_copy_pose, self.act_mirror],
+                                          [self.act_undo, self.act_redo]], [self.act_generate, self.act_cancel],
+                                   {self.act_copy_pose: "Copy Key", self.act_mirror: "Mirror",
+                                    self.act_undo: "\u21b6", self.act_redo: "\u21b7"})
 
     def _build_status(self) -> None:
         self.progress = QProgressBar()

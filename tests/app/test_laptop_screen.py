@@ -71,3 +71,20 @@ def test_the_layout_is_restored_on_the_next_start(qtbot, make_window):
     assert again.size() == QSize(1200, 680)
     assert not again.viewport_dock.isVisible() and not again.floor_plan_dock.isVisible()
     assert again.properties_dock.width() == 460
+
+
+def test_generate_stays_on_the_toolbar_of_a_narrow_window(qtbot, make_window):
+    """At 1024 and 900 px (the window goes no narrower than 884) the longest labels shorten,
+    Generate keeps its place on the bar (not in the overflow menu), and at full width the labels
+    come back."""
+    window = make_window()
+    window.showNormal()
+    bar, generate = window.toolbar.bar, window.act_generate
+    for width in (1024, 900):
+        window.resize(width, 600)
+        qtbot.waitUntil(lambda: window.width() == width)
+        qtbot.waitUntil(lambda: bar.widgetForAction(generate).isVisible())
+        assert window.act_mirror.iconText() == "Mirror"
+    window.resize(LAPTOP_ROOM)
+    qtbot.waitUntil(lambda: window.act_mirror.iconText() == "Mirror Keypose")
+    assert bar.widgetForAction(generate).isVisible() and window.act_undo.iconText() == "Undo"
