@@ -13,6 +13,9 @@ camera: right is the camera's right, up is away from the camera (drawn at the bo
   pelvis path over the timeline's span, or the whole clip), kept in floor coordinates (Trajectory.floor) so the generator walks it
   exactly; drawing again over the same span replaces it.
 - Sketched pelvis paths are shown dashed, at the height a walking pelvis has.
+- Each object's keys stand where the sketch puts them on the floor (footprints, dashed; not a
+  key in the middle of a hold, where the object is in the hands), and once generated its way is
+  drawn thin.
 """
 from __future__ import annotations
 
@@ -24,6 +27,7 @@ from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QWidget
 
 from engine.facing import turned
+from engine.finishing.contacts import sketched_rest
 from engine.skeleton import FEET
 from engine.synth.reach import heading_of
 from engine.storyboard import FLOOR_PATH_HEIGHT, Keypose, Storyboard, Trajectory, floor_path_points
@@ -37,6 +41,7 @@ from .strokes import clean_stroke
 DISC_R = 7.0          # px
 GRID_M = 1.0          # metres between grid lines
 ARROW_M = 0.45        # length of a facing arrow on the floor
+OBJECT_COLOR = QColor("#b48a5c")   # the 3D view's light wood
 
 
 def standing_place(sb: Storyboard, key: Keypose) -> np.ndarray:
@@ -67,7 +72,8 @@ class FloorPlan(QWidget):
         self._framed = True                   # the view frames the content (until the wheel zooms)
         self.setMinimumSize(160, 140)
         self.setMouseTracking(False)
-        for signal in (document.storyboardChanged, document.frameChanged, document.selectionChanged):
+        for signal in (document.storyboardChanged, document.frameChanged, document.selectionChanged,
+                       document.resultChanged):
             signal.connect(self.update)
         document.replaced.connect(self.fit)
 
@@ -242,6 +248,7 @@ class FloorPlan(QWidget):
                 p.setPen(pen)
                 p.setBrush(Qt.NoBrush)
                 p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._walk(t)]))
+        self._paint_objects(p)
         moving = self._drag[1] if self._drag and self._drag[0] == "figure" else None
         for k in sorted(sb.keyposes, key=lambda k: k.frame):
             xz = standing_place(sb, k)
@@ -260,6 +267,29 @@ class FloorPlan(QWidget):
             p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._drag[2]]))
         self._paint_camera(p)
         p.end()
+
+    def _paint_objects(self, p: QPainter) -> None:
+        """Each object's footprint where a key of it stands on the floor (any key but one in the
+        middle of a hold, where it is in the hands, height unknown), named with its frame; and,
+        once generated, the way it travels (thin)."""
+        sb, clip = self._doc.storyboard, self._doc.clip
+        for o, obj in enumerate(sb.objects):
+            if clip is not None and clip.obj_pose is not None and o < clip.num_objects:
+                p.setPen(QPen(OBJECT_COLOR, 1.2))
+                p.setBrush(Qt.NoBrush)
+                p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in clip.obj_pose[:, o, [0, 2]]]))
+            holds = [(c.start, c.end) for c in sb.contacts if c.object == obj.id]
+            half = np.array(obj.spec.size)[[0, 2]] / 2
+            for key in sb.object_keys:
+                if key.object != obj.id or any(a < key.frame < b for a, b in holds):
+                    continue
+                place = sketched_rest(sb, o, key.frame, key.frame)[[0, 2]]
+                corners = self.to_px(place + half * [[-1, -1], [1, -1], [1, 1], [-1, 1]])
+                p.setPen(QPen(OBJECT_COLOR.darker(130), 1.2, Qt.DashLine))
+                p.setBrush(QColor(OBJECT_COLOR.red(), OBJECT_COLOR.green(), OBJECT_COLOR.blue(), 70))
+                p.drawPolygon(QPolygonF([QPointF(*c) for c in corners]))
+                p.setPen(OBJECT_COLOR.darker(160))
+                p.drawText(QPointF(*(corners.max(0) + (3, 0))), f"{obj.id} {key.frame}")
 
     def _paint_arrow(self, p: QPainter, key: Keypose, xz: np.ndarray, color: QColor) -> None:
         """The way the keypose faces, as an arrow from its disc (towards the pointer while turned);

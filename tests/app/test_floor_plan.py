@@ -12,10 +12,11 @@ from app import commands as cmd
 from app.document import Document
 from app.floor_plan import FloorPlan, standing_place
 from engine.facing import depth_of, facing, lift
+from engine.finishing.contacts import sketched_rest
 from engine.poses import library_pose
 from engine.storyboard import floor_path_points
 
-from .fakes import sample_storyboard
+from .fakes import sample_storyboard, walking_clip
 
 
 @pytest.fixture
@@ -142,3 +143,24 @@ def test_a_figure_moved_off_the_sketch_view_is_brought_into_it(qtbot, make_windo
     moved = cmd.find_keypose(window.doc.storyboard, "B", 119)
     inside = [canvas.rect().contains(QPoint(*np.round(canvas.to_px(p)).astype(int))) for p in moved.points]
     assert all(inside)
+
+
+
+def tinted(widget, xz, radius: int = 1) -> bool:
+    """Whether the plan shows wood near floor point xz (its paper and grid are grey-white)."""
+    image, centre = widget.grab().toImage(), px(widget, xz)
+    colors = [image.pixelColor(centre.x() + dx, centre.y() + dy)
+              for dx in range(-radius, radius + 1) for dy in range(-radius, radius + 1)]
+    return any(c.red() - c.blue() > 20 and c.blue() < 235 for c in colors)
+
+
+def test_an_object_key_shows_its_footprint_and_the_generated_object_its_way(qtbot, plan):
+    widget, doc = plan
+    key = doc.storyboard.object_keys[0]                  # box1 at frame 60, where its hold starts
+    place = sketched_rest(doc.storyboard, 0, key.frame, key.frame)[[0, 2]]
+    assert tinted(widget, place, radius=0)
+    clip = walking_clip(doc.storyboard.length, doc.storyboard.fps)
+    way = clip.obj_pose[len(clip.obj_pose) // 4, 0, [0, 2]]
+    assert not tinted(widget, way)
+    doc.set_result([clip], None)
+    assert tinted(widget, way)
