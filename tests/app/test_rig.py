@@ -84,6 +84,22 @@ def test_a_middle_joint_turns_its_limb_and_the_pelvis_carries_the_figure(qtbot, 
     assert np.allclose(shift, shift[0], atol=1.5 / canvas.zoom) and np.linalg.norm(shift[0]) > 0.3
 
 
+def test_a_spine_joint_is_a_chest_control_the_spine_bends_the_chest_stays_upright(qtbot, posed):
+    """Dragging spine3 15 cm sideways shifts the chest without folding it (turning its own short
+    bone folded the upper body 60 degrees); the bones keep their lengths, hips and legs stay."""
+    canvas, doc = posed
+    before = points(doc)
+    chest = before[J["spine3"]]
+    drag(qtbot, canvas, chest, chest + (0.15, 0.0))
+    after = points(doc)
+    np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
+    legs = [J[n] for n in ("pelvis", "l_hip", "r_hip", "l_knee", "r_knee", "l_ankle", "r_ankle")]
+    np.testing.assert_allclose(after[legs], before[legs])
+    upright = [J[n] for n in ("spine3", "neck", "head", "l_shoulder", "r_wrist")]
+    shift = after[upright] - before[upright]
+    assert np.allclose(shift, shift[0], atol=1.5 / canvas.zoom) and shift[0, 0] > 0.08   # moved, not turned
+
+
 def test_shift_turns_ctrl_scales_alt_frees(qtbot, posed):
     canvas, doc = posed
     before = points(doc)
