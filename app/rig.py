@@ -6,9 +6,10 @@ moves the figure the way an animator's rig would, keeping every bone's drawn len
     pelvis                 the whole figure moves
     wrist, ankle           two-bone IK from the shoulder or hip, the elbow or knee bending the
                            way it bends now; the foot rides on the ankle
-    spine, neck, head      a chest control: the spine bends from the pelvis to put the joint
+    spine joints           a chest control: the spine bends from the pelvis to put the joint
                            there, all above it moves along without turning (turning its own
                            short bone folded the chest 60 degrees for a 15 cm drag)
+    neck, head             the neck bends from the chest the same way; the shoulders stay
     any other joint        FK: its bone turns about its parent, everything below it with it
     Shift + drag           the whole figure turns about the pelvis (the dragged joint follows
                            the pointer's direction)
@@ -30,7 +31,10 @@ PELVIS = JOINT_INDEX["pelvis"]
 LIMB_ENDS = {JOINT_INDEX[f"{s}_{end}"]: (JOINT_INDEX[f"{s}_{root}"], JOINT_INDEX[f"{s}_{mid}"])
              for s in "lr" for root, mid, end in (("shoulder", "elbow", "wrist"), ("hip", "knee", "ankle"))}
 MODES = ("rig", "rotate", "scale", "free")
-SPINE = [JOINT_INDEX[n] for n in ("spine1", "spine2", "spine3", "neck", "head")]   # from the pelvis up
+# Chains a dragged joint bends from a fixed root: the spine from the pelvis (a chest control), the
+# neck from the chest (the head looks, the shoulders stay).
+CHAINS = [(PELVIS, [JOINT_INDEX[n] for n in ("spine1", "spine2", "spine3")]),
+          (JOINT_INDEX["spine3"], [JOINT_INDEX[n] for n in ("neck", "head")])]
 
 
 def _subtree(joint: int) -> list[int]:
@@ -78,20 +82,21 @@ def _reach(points: np.ndarray, mask: np.ndarray, end: int, target: np.ndarray) -
         points[j] += points[end] - old_end
 
 
-def _bend_spine(points: np.ndarray, chain: list[int], target: np.ndarray) -> np.ndarray:
-    """points (22, 2) with the dragged spine joint chain[-1] moved to `target` like a chest
-    control: the bones from the pelvis up to it bend to reach (FABRIK, bone lengths kept; out of
-    reach they straighten towards it) and everything above it moves along without turning."""
+def _bend_chain(points: np.ndarray, root: int, chain: list[int], target: np.ndarray) -> np.ndarray:
+    """points (22, 2) with the dragged joint chain[-1] moved to `target` like a rig's control: the
+    bones from `root` (fixed) up the chain bend to reach it (FABRIK, bone lengths kept; out of
+    reach they straighten towards it), each bone's side branches turning with it, and everything
+    above the dragged joint moves along without turning."""
     out = points.copy()
-    joints = [PELVIS, *chain]
+    joints = [root, *chain]
     pos = points[joints].copy()
     lengths = np.linalg.norm(np.diff(pos, axis=0), axis=-1)
     for _ in range(10):
         pos[-1] = target
         for k in range(len(pos) - 2, -1, -1):       # from the dragged joint down ...
             pos[k] = pos[k + 1] + lengths[k] * _unit(pos[k] - pos[k + 1])
-        pos[0] = points[PELVIS]
-        for k in range(1, len(pos)):                # ... and back up from the pelvis
+        pos[0] = points[root]
+        for k in range(1, len(pos)):                # ... and back up from the root
             pos[k] = pos[k - 1] + lengths[k - 1] * _unit(pos[k] - pos[k - 1])
     for k, j in enumerate(joints[1:-1], start=1):   # each bone's own turn carries its side branches
         turn = _angle(pos[k + 1] - pos[k]) - _angle(points[joints[k + 1]] - points[j])
@@ -130,8 +135,9 @@ def drag_pose(points: np.ndarray, mask: np.ndarray, joint: int, target, mode: st
         out += target - before[PELVIS]
     elif joint in LIMB_ENDS:
         _reach(out, mask, joint, target)
-    elif joint in SPINE and mask[PELVIS] and mask[SPINE[:SPINE.index(joint) + 1]].all():
-        out = _bend_spine(before, SPINE[:SPINE.index(joint) + 1], target)
+    elif any(joint in chain and mask[[root, *chain[:chain.index(joint) + 1]]].all() for root, chain in CHAINS):
+        root, chain = next((r, c) for r, c in CHAINS if joint in c)
+        out = _bend_chain(before, root, chain[:chain.index(joint) + 1], target)
     else:
         parent = PARENTS[joint]
         pivot = before[parent] if mask[parent] else before[joint]
