@@ -51,6 +51,16 @@ def bones(p: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p[1:] - p[list(PARENTS[1:])], axis=-1)
 
 
+def drag_joint(qtbot, canvas, doc, name: str, by) -> tuple[np.ndarray, np.ndarray]:
+    """Agent A's keypose (before, after) a real mouse drag of joint `name` by `by` (sketch m);
+    every bone keeps its length."""
+    before = points(doc)
+    drag(qtbot, canvas, before[J[name]], before[J[name]] + by)
+    after = points(doc)
+    np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
+    return before, after
+
+
 def test_dragging_a_wrist_bends_the_arm_and_keeps_its_bones(qtbot, posed):
     canvas, doc = posed
     before = points(doc)
@@ -70,11 +80,7 @@ def test_dragging_a_wrist_bends_the_arm_and_keeps_its_bones(qtbot, posed):
 
 def test_a_middle_joint_turns_its_limb_and_the_pelvis_carries_the_figure(qtbot, posed):
     canvas, doc = posed
-    before = points(doc)
-    knee = before[J["l_knee"]]
-    drag(qtbot, canvas, knee, knee + (0.25, 0.05))
-    after = points(doc)
-    np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
+    before, after = drag_joint(qtbot, canvas, doc, "l_knee", (0.25, 0.05))
     assert np.linalg.norm(after[J["l_ankle"]] - before[J["l_ankle"]]) > 0.1         # the shin went along
     assert np.allclose(after[J["l_hip"]], before[J["l_hip"]])
     pelvis = after[J["pelvis"]]
@@ -88,11 +94,7 @@ def test_a_spine_joint_is_a_chest_control_the_spine_bends_the_chest_stays_uprigh
     """Dragging spine3 15 cm sideways shifts the chest without folding it (turning its own short
     bone folded the upper body 60 degrees); the bones keep their lengths, hips and legs stay."""
     canvas, doc = posed
-    before = points(doc)
-    chest = before[J["spine3"]]
-    drag(qtbot, canvas, chest, chest + (0.15, 0.0))
-    after = points(doc)
-    np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
+    before, after = drag_joint(qtbot, canvas, doc, "spine3", (0.15, 0.0))
     legs = [J[n] for n in ("pelvis", "l_hip", "r_hip", "l_knee", "r_knee", "l_ankle", "r_ankle")]
     np.testing.assert_allclose(after[legs], before[legs])
     upright = [J[n] for n in ("spine3", "neck", "head", "l_shoulder", "r_wrist")]
