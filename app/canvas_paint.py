@@ -174,7 +174,14 @@ class CanvasPainting:
                                                            -LABEL_MARGIN_PX, -LABEL_MARGIN_PX))
 
     def _draw_label(self, p: QPainter, baseline: QPointF, text: str) -> None:
-        p.drawText(self.label_rect(baseline, text, p.font()), Qt.AlignLeft | Qt.AlignVCenter | Qt.TextDontClip, text)
+        """The label over a thin halo of paper, so that it reads over a figure or a stroke."""
+        rect, ink = self.label_rect(baseline, text, p.font()), p.pen()
+        flags = Qt.AlignLeft | Qt.AlignVCenter | Qt.TextDontClip
+        p.setPen(PAPER)
+        for dx, dy in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+            p.drawText(rect.translated(dx, dy), flags, text)
+        p.setPen(ink)
+        p.drawText(rect, flags, text)
 
     def _paint_keyposes(self, p: QPainter):
         sb, frame, sel = self._doc.storyboard, self._doc.frame, self._doc.selection
