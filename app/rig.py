@@ -35,6 +35,8 @@ MODES = ("rig", "rotate", "scale", "free")
 # neck from the chest (the head looks, the shoulders stay).
 CHAINS = [(PELVIS, [JOINT_INDEX[n] for n in ("spine1", "spine2", "spine3")]),
           (JOINT_INDEX["spine3"], [JOINT_INDEX[n] for n in ("neck", "head")])]
+# A dragged joint -> (the root it bends from, the chain up to it).
+BENDS = {j: (root, chain[:i + 1]) for root, chain in CHAINS for i, j in enumerate(chain)}
 
 
 def _subtree(joint: int) -> list[int]:
@@ -135,9 +137,8 @@ def drag_pose(points: np.ndarray, mask: np.ndarray, joint: int, target, mode: st
         out += target - before[PELVIS]
     elif joint in LIMB_ENDS:
         _reach(out, mask, joint, target)
-    elif any(joint in chain and mask[[root, *chain[:chain.index(joint) + 1]]].all() for root, chain in CHAINS):
-        root, chain = next((r, c) for r, c in CHAINS if joint in c)
-        out = _bend_chain(before, root, chain[:chain.index(joint) + 1], target)
+    elif joint in BENDS and mask[[BENDS[joint][0], *BENDS[joint][1]]].all():
+        out = _bend_chain(before, *BENDS[joint], target)
     else:
         parent = PARENTS[joint]
         pivot = before[parent] if mask[parent] else before[joint]

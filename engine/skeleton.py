@@ -30,6 +30,8 @@ MIRROR = tuple(JOINT_INDEX[n.replace("l_", "#").replace("r_", "l_").replace("#",
 HANDS = (JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"])
 FEET = (JOINT_INDEX["l_foot"], JOINT_INDEX["r_foot"])
 ANKLES = (JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"])
+KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
+HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
 
 # Neutral rest skeleton (T-pose) as parent-relative offsets in metres.
 _HALF = {  # left side; the right side mirrors x

@@ -454,12 +454,12 @@ def _check_polyline_sizes(d) -> None:
     schema, which takes 40 us a point)."""
     if not isinstance(d, dict):
         return
-    for group, field in POLYLINES:
+    for group, name in POLYLINES:
         items = d.get(group)
         for i, item in enumerate(items if isinstance(items, list) else []):
-            points = item.get(field) if isinstance(item, dict) else None
+            points = item.get(name) if isinstance(item, dict) else None
             if isinstance(points, list) and len(points) > MAX_POLYLINE_POINTS:
-                raise StoryboardError(f"{group}[{i}].{field}: {len(points)} points; a stroke has at most "
+                raise StoryboardError(f"{group}[{i}].{name}: {len(points)} points; a stroke has at most "
                                       f"{MAX_POLYLINE_POINTS}")
 
 

@@ -29,7 +29,7 @@ from ..skeleton import HANDS, JOINT_INDEX, JOINT_NAMES
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from ..synth.props import pose_array
-from ..synth.reach import UP, steady_pole, two_bone_ik, yaw_matrix
+from ..synth.reach import UP, heading_of, steady_pole, two_bone_ik, yaw_matrix
 from ..synth.trajectory import blend_yaw, smoothstep
 
 SHOULDERS = (JOINT_INDEX["l_shoulder"], JOINT_INDEX["r_shoulder"])
@@ -191,9 +191,7 @@ def _carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma
     a yaw fitted to one person's two wrists spun the object a full turn in ten frames as the wrists
     crossed. The chest's heading is smoothed over `sigma` frames."""
     yaw = np.unwrap(yaw)
-    forward = _forward(joints)                                                # (N, H, 3)
-    chest = gaussian_filter1d(np.unwrap(np.arctan2(-forward[..., 2], forward[..., 0]), axis=0), sigma, axis=0,
-                              mode="nearest")                                 # (N, H)
+    chest = gaussian_filter1d(np.unwrap(heading_of(_forward(joints)), axis=0), sigma, axis=0, mode="nearest")  # (N, H)
     holder = np.where(holding.sum(axis=1) == 1, np.argmax(holding, axis=1), -1)   # (N,) -1: none or several
     runs = np.flatnonzero(np.diff(np.concatenate([[-2], holder, [-2]])))           # where the holder changes
     for start, stop in zip(runs[:-1], runs[1:]):
@@ -225,10 +223,11 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
         fit_yaw = fit_yaw[np.where(last >= 0, last, np.argmax(defined))]
     else:
         fit_yaw = np.full(n, still_yaw)
-    fit_yaw = _carried_yaw(fit_yaw, joints, held.reshape(n, h, 2).any(axis=-1), config.smooth_sigma)
+    holding = held.reshape(n, h, 2).any(axis=-1)                                 # (N, H)
+    fit_yaw = _carried_yaw(fit_yaw, joints, holding, config.smooth_sigma)
     fit_pos = _fit_position(wrists, grips, held, fit_yaw)
     fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
-    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, held.reshape(n, h, 2).any(axis=-1),
+    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding,
                                 config.clear_iterations)
 
     pos, yaw = np.empty((n, 3)), np.empty(n)

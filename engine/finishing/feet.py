@@ -24,15 +24,13 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt, gaussian_filter1d, maximum_filter1d
 
 from ..geometry.rotations import normalize
-from ..skeleton import ANKLES, FEET, JOINT_INDEX
+from ..skeleton import ANKLES, FEET, HIPS, KNEES
 from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
 from .blend import smooth_correction
 from .keys import closeness_to_keys
 from .walk import step_frames_for, walk_through_flights
 
-HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
-KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
 
 
 @dataclass

@@ -17,15 +17,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import label
 
-from ..skeleton import ANKLES, FEET, JOINT_INDEX
+from ..skeleton import ANKLES, FEET, HIPS, KNEES
 from ..synth.trajectory import smootherstep, smoothstep
 from .blend import spike
 
 if TYPE_CHECKING:
     from .feet import FeetConfig
 
-HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
-KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
 STILL = 0.005   # m a frame: a foot on the floor moving less than this to and from a frame stands
 
 

@@ -38,7 +38,7 @@ class SamplerConfig:
     cfg: float = 1.6                # classifier-free guidance weight
     text_cfg: float | None = None   # the text's own guidance weight (None: cfg's; sampling/cfg.py). On
                                     # thumbnails with a caption (40 storyboards, seeds 0/1) 5 moved the
-                                    # motion 0.28 m from the text-less one instead of 0.11, R-text@3
+                                    # motion 0.29/0.27 m from the text-less one, not 0.12/0.11; R-text@3
                                     # 0.41/0.41 -> 0.47/0.41, FID 0.35/0.40 -> 0.31/0.37; on full
                                     # sketches the text moves it 4 cm either way. A third more network
                                     # time where there is a text, so not the default.
