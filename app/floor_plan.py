@@ -13,8 +13,8 @@ camera: right is the camera's right, up is away from the camera (drawn at the bo
   pelvis path over the timeline's span, or the whole clip), kept in floor coordinates (Trajectory.floor) so the generator walks it
   exactly; drawing again over the same span replaces it.
 - Sketched pelvis paths are shown dashed, at the height a walking pelvis has.
-- Each object's keys stand where the sketch puts them on the floor (footprints, dashed; not a
-  key in the middle of a hold, where the object is in the hands), and once generated its way is
+- Each object's keys stand where the sketch puts them on the floor (footprints, dashed; only keys
+  at frames nobody holds it: in the hands its height is unknown), and once generated its way is
   drawn thin.
 """
 from __future__ import annotations
@@ -269,9 +269,9 @@ class FloorPlan(QWidget):
         p.end()
 
     def _paint_objects(self, p: QPainter) -> None:
-        """Each object's footprint where a key of it stands on the floor (any key but one in the
-        middle of a hold, where it is in the hands, height unknown), named with its frame; and,
-        once generated, the way it travels (thin)."""
+        """Each object's footprint where a key of it stands on the floor (a key at a frame nobody
+        holds it: in the hands its height is unknown, and taken for the floor it was drawn metres
+        off), named with its frame; and, once generated, the way it travels (thin)."""
         sb, clip = self._doc.storyboard, self._doc.clip
         for o, obj in enumerate(sb.objects):
             if clip is not None and clip.obj_pose is not None and o < clip.num_objects:
@@ -281,7 +281,7 @@ class FloorPlan(QWidget):
             holds = [(c.start, c.end) for c in sb.contacts if c.object == obj.id]
             half = np.array(obj.spec.size)[[0, 2]] / 2
             for key in sb.object_keys:
-                if key.object != obj.id or any(a < key.frame < b for a, b in holds):
+                if key.object != obj.id or any(a <= key.frame <= b for a, b in holds):
                     continue
                 place = sketched_rest(sb, o, key.frame, key.frame)[[0, 2]]
                 corners = self.to_px(place + half * [[-1, -1], [1, -1], [1, 1], [-1, 1]])

@@ -155,9 +155,13 @@ def tinted(widget, xz, radius: int = 1) -> bool:
 
 
 def test_an_object_key_shows_its_footprint_and_the_generated_object_its_way(qtbot, plan):
+    """A key at a frame nobody holds the box is a footprint on the floor; one in a hold is not
+    drawn (the box is in the hands, its height unknown)."""
     widget, doc = plan
-    key = doc.storyboard.object_keys[0]                  # box1 at frame 60, where its hold starts
-    place = sketched_rest(doc.storyboard, 0, key.frame, key.frame)[[0, 2]]
+    held = doc.storyboard.object_keys[0]                 # box1 at frame 60, where its hold starts
+    assert not tinted(widget, sketched_rest(doc.storyboard, 0, held.frame, held.frame)[[0, 2]], radius=0)
+    doc.undo_stack.push(cmd.SetObjectKey(doc, "box1", 10, held.outline + (0.3, 0.0)))
+    place = sketched_rest(doc.storyboard, 0, 10, 10)[[0, 2]]
     assert tinted(widget, place, radius=0)
     clip = walking_clip(doc.storyboard.length, doc.storyboard.fps)
     way = clip.obj_pose[len(clip.obj_pose) // 4, 0, [0, 2]]
