@@ -16,13 +16,13 @@ from PySide6.QtWidgets import QWidget
 
 from engine.geometry.polylines import point_polyline_distance
 from engine.poses import standing_pose_2d
+from engine.rig import drag_pose
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES
 from engine.storyboard import SKETCH_LIMIT_M, Contact, ObjectPath, Trajectory
 
 from . import commands as cmd
 from .canvas_paint import CanvasPainting
 from .document import OBJECT_PATH, Document
-from .rig import drag_pose
 from .strokes import clean_stroke, splice
 
 HIT_PX = 9.0            # how close (pixels) a click must be to a joint, stroke or anchor
@@ -39,7 +39,7 @@ class _Gesture:
     joint: int = 0
     index: int = -1                       # object key index for move_object
     pose: tuple | None = None             # joint drags: the keypose's (points, mask) at the press
-    mode: str = "rig"                     # joint drags: app.rig's mode, from the keys held at the press
+    mode: str = "rig"                     # joint drags: engine.rig's mode, from the keys held at the press
 
 
 class SketchCanvas(CanvasPainting, QWidget):
@@ -485,7 +485,7 @@ def _fresh_id(prefix: str, taken: list[str]) -> str:
 
 
 def _rig_mode(modifiers) -> str:
-    """app.rig's mode for the held keys: Shift turns, Ctrl scales the figure, Alt frees the joint."""
+    """engine.rig's mode for the held keys: Shift turns, Ctrl scales the figure, Alt frees the joint."""
     if modifiers & Qt.AltModifier:
         return "free"
     if modifiers & Qt.ShiftModifier:

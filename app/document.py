@@ -37,7 +37,7 @@ def new_storyboard() -> Storyboard:
 class ToolOptions:
     """How the tools draw; the canvas reads them, the properties panel sets them."""
     object_shape: str = "rectangle"   # the object tool drags a "rectangle" or draws a "lasso"
-    pinned: tuple[str, ...] = ()      # joints that stay put while a pose is dragged (app.rig)
+    pinned: tuple[str, ...] = ()      # joints that stay put while a pose is dragged (engine.rig)
 
 
 OBJECT_SHAPES = ("rectangle", "lasso")

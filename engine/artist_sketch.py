@@ -7,9 +7,10 @@ own frames. An artist's differ, and two kinds are made here, each from a seed:
 placed joint 2-3 cm off, spine and collar joints often left unplaced, interior keys and contact
 spans a few frames off, strokes short and wobbly (8-20 points), a box drawn as its four corners.
 `posed_with_tools`: what the app's keypose tool gives an artist who drags only the end effectors:
-the canvas's standing template (engine.poses) moved to the pelvis, with wrists, feet and head
-dragged to where they belong, elbows and knees left where the template had them; paths, object
-and contacts as in `hand_drawn`.
+the canvas's standing template (engine.poses) placed at the pelvis by a click, then ankles, feet,
+wrists and head dragged to where they belong with the canvas's rig (engine.rig: the limbs follow by
+IK with the template's drawn bone lengths, so a hand beyond the drawn arm's reach stops short);
+paths, object and contacts as in `hand_drawn`.
 The benchmark scores both (engine.bench.protocol); training can learn from them
 (DatasetConfig.artist_share, through `redrawn`).
 """
@@ -22,11 +23,12 @@ import numpy as np
 
 from .geometry.polylines import resample_polyline
 from .poses import standing_pose_2d
+from .rig import drag_pose
 from .skeleton import JOINT_INDEX
 from .storyboard import Keypose, Storyboard, StoryboardError
 
 UNPLACED_CANDIDATES = ("spine1", "spine2", "spine3", "l_collar", "r_collar")
-DRAGGED = ("head", "l_wrist", "r_wrist", "l_foot", "r_foot", "l_ankle", "r_ankle")
+DRAGGED = ("l_ankle", "r_ankle", "l_foot", "r_foot", "l_wrist", "r_wrist", "head")   # in the artist's order
 
 
 @dataclass(frozen=True)
@@ -108,11 +110,12 @@ def _drawn_figure(k: Keypose, rng: np.random.Generator, config: ArtistConfig) ->
 
 def _posed_figure(k: Keypose, template: np.ndarray, rng: np.random.Generator, config: ArtistConfig) -> Keypose:
     points = template + k.points[JOINT_INDEX["pelvis"]] + _offsets(rng, 1, config)   # placed by a click
+    placed = np.ones(len(points), bool)
     for name in DRAGGED:
         j = JOINT_INDEX[name]
         if k.mask[j]:
-            points[j] = k.points[j] + _offsets(rng, 1, config)[0]
-    return Keypose(k.agent, k.frame, points, np.ones(len(points), bool))
+            points = drag_pose(points, placed, j, k.points[j] + _offsets(rng, 1, config)[0])
+    return Keypose(k.agent, k.frame, points, placed)
 
 
 def _offsets(rng: np.random.Generator, count: int, config: ArtistConfig) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Posing with the rig on the canvas (app/rig.py), by real mouse drags: limbs solve by IK and
+"""Posing with the rig on the canvas (engine/rig.py), by real mouse drags: limbs solve by IK and
 keep their bones, middle joints turn their limb, the pelvis carries the figure, Shift turns it,
 Ctrl scales it, Alt frees one joint, and pinned feet stay planted."""
 import numpy as np
@@ -8,8 +8,8 @@ from PySide6.QtCore import QPoint, Qt
 from app import commands as cmd
 from app.canvas import SketchCanvas
 from app.document import Document
-from app.rig import drag_pose
 from engine.poses import standing_pose_2d
+from engine.rig import drag_pose
 from engine.skeleton import JOINT_INDEX as J
 from engine.skeleton import PARENTS
 

@@ -5,7 +5,8 @@ import pytest
 
 from engine.bench.animator import animator_metrics, bone_change, foot_float, pop, timing
 from engine.artist_sketch import UNPLACED_CANDIDATES, hand_drawn, posed_with_tools
-from engine.skeleton import JOINT_INDEX, rest_pose
+from engine.poses import standing_pose_2d
+from engine.skeleton import JOINT_INDEX, PARENTS, rest_pose
 from engine.sketchify import sketchify
 from engine.synth import synthesize
 
@@ -31,15 +32,30 @@ def test_hand_drawn_storyboards_look_drawn_and_stay_valid(scene):
     assert {k.frame for k in drawn.keyposes} != {k.frame for k in clean.keyposes}   # interior keys moved
 
 
-def test_posed_storyboards_are_the_template_with_dragged_end_effectors(scene):
+def test_posed_storyboards_are_the_template_posed_with_the_rig(scene):
     clip, clean = scene
     posed = posed_with_tools(clean, 7)
     posed.validate()
     assert all(k.mask.all() for k in posed.keyposes)
-    elbow = JOINT_INDEX["l_elbow"]
-    for p in posed.keyposes:   # the elbow stays where the template has it, relative to the pelvis
-        others = [q for q in posed.keyposes if q is not p]
-        assert all(np.allclose(p.points[elbow] - p.points[0], q.points[elbow] - q.points[0]) for q in others)
+    template = standing_pose_2d(clean.camera)
+    limbs = [JOINT_INDEX[f"{s}_{j}"] for s in "lr" for j in ("elbow", "wrist", "knee", "ankle", "foot")]
+    drawn = {(k.agent, k.frame): k for k in clean.keyposes}
+    reached = 0
+    for p in posed.keyposes:   # the rig keeps the template's drawn bones; a hand in reach lands on its drag
+        assert np.allclose(_bones(p.points)[limbs], _bones(template)[limbs])
+        c = drawn.get((p.agent, p.frame))
+        for side in "lr":
+            wrist, shoulder = JOINT_INDEX[f"{side}_wrist"], JOINT_INDEX[f"{side}_shoulder"]
+            arm = _bones(template)[[JOINT_INDEX[f"{side}_elbow"], wrist]].sum()
+            if c is not None and np.linalg.norm(c.points[wrist] - p.points[shoulder]) < arm - 0.04:
+                assert np.linalg.norm(p.points[wrist] - c.points[wrist]) <= 0.031
+                reached += 1
+    assert reached > 0
+
+
+def _bones(points: np.ndarray) -> np.ndarray:
+    """(22, 2) -> each joint's drawn bone length to its parent (22,), the pelvis' 0."""
+    return np.linalg.norm(points - points[[max(p, 0) for p in PARENTS]], axis=-1)
 
 
 def test_the_animator_figures_catch_pops_floats_stretches_and_bad_timing(scene):

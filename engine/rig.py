@@ -1,4 +1,5 @@
-"""Posing a keypose like a rig, in the sketch plane (pure numpy: the canvas calls it per drag).
+"""Posing a keypose like a rig, in the sketch plane (pure numpy: the app's canvas calls it per drag,
+and the artist-style benchmark poses its figures with it, as an artist on the canvas would).
 
 A keypose is 22 points (22, 2) of the skeleton (engine.skeleton's hierarchy). Dragging one point
 moves the figure the way an animator's rig would, keeping every bone's drawn length:
