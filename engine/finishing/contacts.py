@@ -230,14 +230,36 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding,
                                 config.clear_iterations)
 
+    # Holds fewer frames apart than a lift takes are one, and so is a hold that starts or ends that
+    # close to the clip's ends: the artist's spans are a few frames off, not a drop and a pick-up
+    # (a box keyed on the floor one frame before its hold rose 1.1 m into the hands in six frames).
+    stretches, landings = [], []
+    for (start, end), landing in zip(spans, rests[1:]):
+        if stretches and start - stretches[-1][1] - 1 < config.lift_frames:
+            stretches[-1][1], landings[-1] = end, landing
+        else:
+            stretches.append([start, end])
+            landings.append(landing)
+    if stretches[0][0] < config.lift_frames:
+        stretches[0][0] = 0
+    if n - 1 - stretches[-1][1] < config.lift_frames:
+        stretches[-1][1] = n - 1
+    carried = np.zeros(n, bool)
+    for start, end in stretches:
+        carried[start:end + 1] = True
+    fitted, frames, fit_yaw = held.any(axis=1), np.arange(n), np.unwrap(fit_yaw)
+    for axis in range(3):   # carried across the gaps at the pace it was carried, held still at the ends
+        fit_pos[carried & ~fitted, axis] = np.interp(frames[carried & ~fitted], frames[fitted], fit_pos[fitted, axis])
+    fit_yaw[carried & ~fitted] = np.interp(frames[carried & ~fitted], frames[fitted], fit_yaw[fitted])
+
     pos, yaw = np.empty((n, 3)), np.empty(n)
-    first = spans[0][0]
+    first = stretches[0][0]
     # Before the first hold it rests where it was sketched, else where it is picked up.
     pos[:first] = _grounded(rests[0] if rests[0] is not None else fit_pos[first], config)
     yaw[:first] = fit_yaw[first]
-    for (start, end), landing in zip(spans, rests[1:]):
+    for (start, end), landing in zip(stretches, landings):
         held_pos = gaussian_filter1d(fit_pos[start:end + 1], config.smooth_sigma, axis=0, mode="nearest")
-        held_yaw = gaussian_filter1d(np.unwrap(fit_yaw[start:end + 1]), config.smooth_sigma, mode="nearest")
+        held_yaw = gaussian_filter1d(fit_yaw[start:end + 1], config.smooth_sigma, mode="nearest")
         held_pos[:, 1] = np.maximum(held_pos[:, 1], config.rest_height)  # never through the floor
         if start > 0:  # lifted from where it lay over a few frames, not popped into the hands
             w = smoothstep(np.arange(end - start + 1) / max(config.lift_frames, 1))

@@ -175,6 +175,22 @@ def test_one_person_and_one_hand():
     np.testing.assert_allclose(held[31:35, 0, 3:], np.broadcast_to(held[30, 0, 3:], (4, 4)), atol=1e-12)
 
 
+def test_a_few_frames_without_a_hold_are_the_artists_not_a_lift_or_a_drop():
+    sb, joints = one_person()      # walking 2.5 cm a frame; the box held by both hands
+    pose = np.zeros((len(joints), 1, 7))
+
+    def holds(*spans):
+        return [Contact("A", hand, a, b, "box", anchor) for a, b in spans
+                for hand, anchor in (("left", 0), ("right", 2))]
+
+    sb.contacts = holds((3, 15), (19, 36))      # late by 3 frames, a 3-frame gap, early by 3
+    held = hold_object(joints, pose, sb)[:, 0, :3]
+    assert np.ptp(held[:, 1]) < 1e-6            # in the hands all along: no lift, no 11 cm drop
+    assert np.abs(np.diff(held, axis=0)).max() < 0.03
+    sb.contacts = holds((3, 15), (26, 36))      # a gap of ten frames: let go, it falls
+    assert hold_object(joints, pose, sb)[20, 0, 1] < held[20, 1] - 0.1
+
+
 def test_one_holder_turns_the_object_with_their_chest_not_their_wrists():
     sb, joints = one_person()
     wrists = list(HANDS)
