@@ -6,7 +6,9 @@ moves the figure the way an animator's rig would, keeping every bone's drawn len
 
     pelvis                 the whole figure moves
     wrist, ankle           two-bone IK from the shoulder or hip, the elbow or knee bending the
-                           way it bends now; the foot rides on the ankle
+                           way it bends now; the foot rides on the ankle. A wrist dragged beyond
+                           the arm's reach first leans the chest towards it (by at most
+                           MAX_LEAN, as a spine3 drag would), as a body reaching for something does
     spine joints           a chest control: the spine bends from the pelvis to put the joint
                            there, all above it moves along without turning (turning its own
                            short bone folded the chest 60 degrees for a 15 cm drag)
@@ -38,6 +40,9 @@ CHAINS = [(PELVIS, [JOINT_INDEX[n] for n in ("spine1", "spine2", "spine3")]),
           (JOINT_INDEX["spine3"], [JOINT_INDEX[n] for n in ("neck", "head")])]
 # A dragged joint -> (the root it bends from, the chain up to it).
 BENDS = {j: (root, chain[:i + 1]) for root, chain in CHAINS for i, j in enumerate(chain)}
+CHEST = JOINT_INDEX["spine3"]
+WRISTS = (JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"])
+MAX_LEAN = 0.3   # m the chest may move towards a hand dragged beyond reach (a 35 degree lean)
 
 
 def _subtree(joint: int) -> list[int]:
@@ -83,6 +88,28 @@ def _reach(points: np.ndarray, mask: np.ndarray, end: int, target: np.ndarray) -
     points[mid], points[end] = two_bone_2d(points[root], points[mid], points[end], target)
     for j in SUBTREE[end][1:]:                                  # the foot rides on the ankle
         points[j] += points[end] - old_end
+
+
+def _lean_towards(points: np.ndarray, mask: np.ndarray, wrist: int, target: np.ndarray,
+                  pinned: tuple[int, ...]) -> np.ndarray:
+    """points (22, 2) with the chest bent towards target (2,) until the wrist's arm reaches it,
+    the chest moving at most MAX_LEAN; unchanged when the arm reaches already, or the spine is
+    unplaced or pinned."""
+    shoulder, elbow = LIMB_ENDS[wrist]
+    root, chain = BENDS[CHEST]
+    if not mask[[root, *chain, shoulder, elbow, wrist]].all() or set(chain) & set(pinned):
+        return points
+    arm = np.linalg.norm(points[elbow] - points[shoulder]) + np.linalg.norm(points[wrist] - points[elbow])
+    out = points
+    for _ in range(3):   # the chest moves on its spine's sphere about the pelvis: a few passes
+        gap = target - out[shoulder]
+        short = np.linalg.norm(gap) - arm
+        if short < 1e-6:
+            break
+        lean = out[CHEST] + short * _unit(gap) - points[CHEST]
+        lean *= min(1.0, MAX_LEAN / max(float(np.linalg.norm(lean)), 1e-12))
+        out = _bend_chain(points, root, chain, points[CHEST] + lean)
+    return out
 
 
 def _bend_chain(points: np.ndarray, root: int, chain: list[int], target: np.ndarray) -> np.ndarray:
@@ -137,6 +164,8 @@ def drag_pose(points: np.ndarray, mask: np.ndarray, joint: int, target, mode: st
     elif joint == PELVIS:
         out += target - before[PELVIS]
     elif joint in LIMB_ENDS:
+        if joint in WRISTS:
+            out = _lean_towards(out, mask, joint, target, pinned)
         _reach(out, mask, joint, target)
     elif joint in BENDS and mask[[BENDS[joint][0], *BENDS[joint][1]]].all():
         out = _bend_chain(before, *BENDS[joint], target)

@@ -9,7 +9,7 @@ from app import commands as cmd
 from app.canvas import SketchCanvas
 from app.document import Document
 from engine.poses import standing_pose_2d
-from engine.rig import drag_pose
+from engine.rig import MAX_LEAN, drag_pose
 from engine.skeleton import JOINT_INDEX as J
 from engine.skeleton import PARENTS
 
@@ -76,6 +76,23 @@ def test_dragging_a_wrist_bends_the_arm_and_keeps_its_bones(qtbot, posed):
     assert set(np.flatnonzero(moved)) == {J["r_elbow"], J["r_wrist"]}
     doc.undo_stack.undo()
     assert np.allclose(points(doc), before)
+
+
+def test_a_wrist_dragged_beyond_reach_leans_the_chest_to_get_there(qtbot, posed):
+    canvas, doc = posed
+    before = points(doc)
+    target = before[J["r_shoulder"]] + (-0.62, 0.0)              # 13 cm beyond the arm's reach
+    drag(qtbot, canvas, before[J["r_wrist"]], target)
+    after = points(doc)
+    assert np.linalg.norm(after[J["r_wrist"]] - target) < 1.5 / canvas.zoom
+    legs = [J[n] for n in ("pelvis", "l_hip", "r_hip", "l_knee", "r_knee", "l_ankle", "r_ankle")]
+    np.testing.assert_allclose(after[legs], before[legs])
+    lean = after[J["spine3"]] - before[J["spine3"]]
+    assert 0.05 < -lean[0] <= MAX_LEAN + 1e-9                     # towards it, at most MAX_LEAN
+    np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
+    far = before[J["r_shoulder"]] + (-2.0, 0.0)                  # out of any reach: a lean, no more
+    lean = drag_pose(before, np.ones(len(before), bool), J["r_wrist"], far)[J["spine3"]] - before[J["spine3"]]
+    assert 0.1 < np.linalg.norm(lean) <= MAX_LEAN + 1e-9
 
 
 def test_a_middle_joint_turns_its_limb_and_the_pelvis_carries_the_figure(qtbot, posed):
