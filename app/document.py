@@ -21,7 +21,7 @@ from engine.clip import MotionClip
 from engine.storyboard import AGENT_COLORS, Agent, Storyboard
 from engine.takes import MAX_TAKES, Take
 
-from .generation import GenerationSettings
+from .generation import GenerationSettings, settings_of
 
 TOOLS = ("select", "keypose", "trajectory", "object", "contact", "erase")
 OBJECT_PATH = "object path"  # pseudo joint: the trajectory tool then draws the selected object's path
@@ -209,12 +209,14 @@ class Document(QObject):
         self.choose_take(len(self.takes) - 1, force=True)
 
     def choose_take(self, index: int, force: bool = False) -> None:
+        """Show take `index`; the generation settings become the ones it was made with."""
         if 0 <= index < len(self.takes) and (force or index != self.take_index):
             take = self.takes[index]
             self.clips, self.variation = list(take.clips), take.chosen
             self.phase = take.clip.phase
             self._result_source = take.source
             self.take_index = index
+            self.set_settings(settings_of(take.settings, self.settings))
             self.resultChanged.emit()
 
     def choose_variation(self, index: int) -> None:

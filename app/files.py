@@ -108,7 +108,7 @@ class FileActions:
         try:
             self.doc.storyboard.validate()
             self.doc.storyboard.save(path)
-            save_takes(self.doc.takes, takes_path(path))
+            self._save_takes(path)
         except (StoryboardError, OSError) as e:
             self.error(f"Cannot save {path.name}: {e}")
             return False
@@ -116,6 +116,17 @@ class FileActions:
         self._remember(path)
         self.statusBar().showMessage(f"Saved {path}", 5000)
         return True
+
+    def _save_takes(self, path: Path) -> None:
+        """The document's takes beside the storyboard at path. Without takes, a takes file there
+        is another storyboard's (saved over) and goes, unless it is this one's own that could not
+        be read when it was opened (the person was told; it is left for them)."""
+        target = takes_path(path)
+        if self.doc.takes:
+            save_takes(self.doc.takes, target)
+        elif target.exists() and not (self.doc.path is not None and Path(self.doc.path).resolve() == path.resolve()
+                                      and not _readable_takes(target)):
+            target.unlink()
 
     def _last_dir(self) -> str:
         recent = self.recent_files()
@@ -267,3 +278,11 @@ class FileActions:
         self.autosaver.save_now()          # the recovered work is this window's now
         self.statusBar().showMessage("Recovered unsaved work; save it to keep it.", 8000)
         return True
+
+
+def _readable_takes(path: Path) -> bool:
+    try:
+        load_takes(path)
+    except TakesError:
+        return False
+    return True

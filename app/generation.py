@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 import threading
 from collections.abc import Generator
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -37,6 +37,20 @@ class GenerationSettings:
 
 # Settings of this machine or this moment, not of a take (left out of the takes kept).
 MACHINE_SETTINGS = ("preview", "threads", "reserve_cores")
+
+
+def settings_of(take_settings: dict, current: GenerationSettings) -> GenerationSettings:
+    """The settings a take was generated with (its kept dict), on this machine's `current`
+    ones: choosing a take makes the next generation reproduce it. Whether it came after a drag
+    is the take's, not the next generation's."""
+    kept = {}
+    for f in fields(GenerationSettings):
+        value, default = take_settings.get(f.name), getattr(current, f.name)
+        # A takes file is read from disk: only values of the field's own kind (a float may be whole).
+        if (f.name not in MACHINE_SETTINGS and f.name != "after_drag"
+                and (type(value) is type(default) or (type(default) is float and type(value) is int))):
+            kept[f.name] = type(default)(value)
+    return replace(current, **kept)
 
 StepStream = Generator[StepEvent, None, GenerationResult]
 

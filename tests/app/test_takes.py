@@ -35,9 +35,12 @@ def test_takes_are_kept_saved_and_reopened(qtbot, make_window, tmp_path, dialogs
     assert reopened.open_file(path)
     assert [t.seed for t in reopened.doc.takes] == [4, 9] and reopened.doc.variation == 1
     assert reopened.doc.clip is not None and not reopened.session.outdated and len(sampler.yielded) == calls
-    reopened.properties.take.setFocus()
-    qtbot.keyClick(reopened.properties.take, Qt.Key_Up)           # back to take 1
-    assert reopened.doc.take_index == 0 and reopened.properties.take.currentText().startswith("Take 1: seed 4")
+    panel = reopened.properties              # the settings the shown take was made with, to make it again
+    assert panel.seed.value() == 9 and panel.variations.value() == 2 and panel.steps.value() == 3
+    panel.take.setFocus()
+    qtbot.keyClick(panel.take, Qt.Key_Up)                          # back to take 1
+    assert reopened.doc.take_index == 0 and panel.take.currentText().startswith("Take 1: seed 4")
+    assert panel.seed.value() == 4 and reopened.doc.settings.seed == 4 and not reopened.doc.settings.after_drag
 
 
 def test_a_damaged_takes_file_opens_the_storyboard_and_says_so(qtbot, window, tmp_path, dialogs):
@@ -48,3 +51,17 @@ def test_a_damaged_takes_file_opens_the_storyboard_and_says_so(qtbot, window, tm
     assert window.doc.storyboard.length == 120 and window.doc.takes == []
     assert len(dialogs.errors) == 1 and "without its takes" in dialogs.errors[0]
     assert takes_path(path).read_bytes() == b"damaged"                        # left for the artist
+    assert window.save_to(path) and takes_path(path).read_bytes() == b"damaged"   # saving keeps it too
+
+
+def test_saving_over_a_storyboard_with_takes_drops_its_takes(qtbot, make_window, tmp_path, dialogs):
+    window = make_window()
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    generate(qtbot, window, seed=4)
+    path = tmp_path / "scene.json"
+    assert window.save_to(path) and takes_path(path).exists()
+    window.new_document()
+    assert window.doc.takes == [] and window.save_to(path)
+    assert not takes_path(path).exists()                                    # not the old scene's motion
+    reopened = make_window()
+    assert reopened.open_file(path) and reopened.doc.takes == [] and reopened.doc.clip is None
