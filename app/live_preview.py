@@ -4,7 +4,8 @@ preview student (engine.models.preview); on release the full generation follows.
 
 Pointer moves arrive far faster than previews finish (~0.1 s each here), so they are coalesced:
 the first move of a burst starts a short timer and, when it fires, the newest dragged storyboard
-goes to the session, which cancels a stale preview and runs only the newest request.
+goes to the session, which lets a running preview finish while the drag goes on and runs only the
+newest request after it (GenerationSession.preview).
 """
 from __future__ import annotations
 

@@ -16,10 +16,11 @@ cancelled(), outdatedChanged(bool).
 from __future__ import annotations
 
 import copy
+import time
 from dataclasses import asdict, replace
 from collections.abc import Callable
 
-from PySide6.QtCore import QObject, Signal
+from PySide6.QtCore import QObject, QTimer, Signal
 
 from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard, StoryboardError
@@ -28,6 +29,12 @@ from engine.takes import Take
 from .document import Document
 from .generation import MACHINE_SETTINGS, GenerationSettings, StepStream
 from .worker import GenerationRunner
+
+# A preview request newer than the running preview waits for it while the drag goes on (cancelled
+# at every request, a preview that takes 0.1-0.2 s never finished under a pointer moving every
+# 16 or 50 ms); once requests stop for SETTLE_MS (the pointer rests), a running preview less than
+# half done gives way to the newest at once.
+SETTLE_MS = 40
 
 
 class GenerationSession(QObject):
@@ -52,6 +59,12 @@ class GenerationSession(QObject):
         self._document_version = 0   # bumped when the document is replaced (new, open, recover) ...
         self._run_version = 0        # ... and what it was when the current run started: its result
                                      # belongs to the storyboard it was asked for, not to the next one
+        self._started_at = 0.0
+        self._preview_s = 0.15       # how long a preview takes here (the last finished one's time)
+        self._settle = QTimer(self)
+        self._settle.setSingleShot(True)
+        self._settle.setInterval(SETTLE_MS)
+        self._settle.timeout.connect(self._on_settled)
         self._runner.runningChanged.connect(self.runningChanged)
         self._runner.step.connect(self._on_step)
         self._runner.finished.connect(self._on_finished)
@@ -81,10 +94,11 @@ class GenerationSession(QObject):
         return problem
 
     def preview(self, storyboard: Storyboard, settings: GenerationSettings) -> None:
-        """A preview of `storyboard` (the document's, with a drag in progress applied): the
-        running preview is stale and cancelled, and of the requests that arrive meanwhile only
-        the newest runs. A full generation running is cancelled too: the drag changes what it was
-        asked. A storyboard that cannot be generated is skipped (the release will say why)."""
+        """A preview of `storyboard` (the document's, with a drag in progress applied). Of the
+        requests that arrive while a preview runs only the newest runs, after it: the running one
+        is shown first while the drag goes on, and cancelled once the pointer rests if it is less
+        than half done (SETTLE_MS). A full generation running is cancelled: the drag changes what
+        it was asked. A storyboard that cannot be generated is skipped (the release says why)."""
         if _why_not(storyboard) is None:
             self._queue(copy.deepcopy(storyboard), replace(settings, preview=True))
 
@@ -94,16 +108,25 @@ class GenerationSession(QObject):
 
     def _queue(self, storyboard: Storyboard, settings: GenerationSettings) -> None:
         self._pending = (storyboard, settings)
-        if self.running:
-            self._runner.cancel()           # its end starts the pending request
-        else:
+        if not self.running:
             self._start_pending()
+        elif settings.preview and self.settings.preview:
+            self._settle.start()            # restarted by every request: fires when they stop
+        else:
+            self._runner.cancel()           # its end starts the pending request
+
+    def _on_settled(self) -> None:
+        if (self.running and self.settings.preview and self._pending is not None
+                and time.monotonic() - self._started_at < self._preview_s / 2):
+            self._runner.cancel()
 
     def _start_pending(self) -> None:
+        self._settle.stop()
         if self._pending is None:
             return
         (storyboard, settings), self._pending = self._pending, None
         self.storyboard, self.settings, self.latest = storyboard, settings, None
+        self._started_at = time.monotonic()
         self._run_version = self._document_version
         generate = self.generate
         self._runner.start(lambda: generate(storyboard, settings))
@@ -130,6 +153,8 @@ class GenerationSession(QObject):
             self.cancelled.emit()
             self._start_pending()
             return
+        if self.settings.preview:
+            self._preview_s = time.monotonic() - self._started_at
         if self.settings.preview or not clips:
             self._doc.set_result(clips, clips[0].phase if clips else None, source=self.storyboard)
         else:

@@ -1,8 +1,8 @@
 """Live preview: a joint dragged with real mouse events regenerates previews of the dragged
-storyboard (coalesced, the stale one cancelled, the newest shown), and the release runs the full
-generation of the storyboard as it now is."""
+storyboard (coalesced; a running one shown while the drag goes on, the newest after it), and the
+release runs the full generation of the storyboard as it now is."""
 import numpy as np
-from PySide6.QtCore import QPoint, Qt
+from PySide6.QtCore import QEventLoop, QPoint, Qt, QTimer
 
 from app import commands as cmd
 from engine.skeleton import JOINT_INDEX
@@ -65,6 +65,38 @@ def test_dragging_a_joint_previews_it_and_the_release_generates(qtbot, make_wind
     assert np.allclose(previews[-1], posed)                            # ... the newest preview showed it
     assert np.allclose(sampler.asked[-1][1], posed)                    # and the full run has it
     assert not window.session.outdated
+
+
+def rest(ms: int) -> None:
+    """Let the event loop (and the generation thread) run for ms: QTest.qWait keeps Python's lock."""
+    loop = QEventLoop()
+    QTimer.singleShot(ms, loop.quit)
+    loop.exec()
+
+
+def test_previews_finish_while_the_pointer_keeps_moving(qtbot, make_window):
+    """A preview takes ~0.14 s here and the pointer moves every 16 ms for a second: previews
+    must still be shown during the drag (each new one cancelling the last, none ever was)."""
+    sampler = Recording()
+    sampler.delay_s = 0.015
+    window = make_window(generate=sampler)
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    window.doc.set_frame(60)
+    window.doc.set_tool("select")
+    shown = []
+    window.session.finished.connect(lambda result: shown.append(window.session.settings.preview))
+    canvas = window.canvas
+    start = cmd.find_keypose(window.doc.storyboard, "A", 60).points[WRIST].copy()
+    qtbot.mousePress(canvas, Qt.LeftButton, pos=px(canvas, start))
+    for i in range(1, 61):
+        qtbot.mouseMove(canvas, px(canvas, start + (0.004 * i, 0.002 * i)))
+        rest(16)
+    assert sum(shown) >= 3                                   # shown while the pointer moved
+    rest(400)                                                # it rests: the newest is shown
+    assert window.session.settings.preview and not window.session.running
+    assert np.allclose(sampler.asked[-1][1], canvas.to_uv(np.array([px(canvas, start + (0.24, 0.12)).x(),
+                                                                      px(canvas, start + (0.24, 0.12)).y()], float)))
+    qtbot.mouseRelease(canvas, Qt.LeftButton, pos=px(canvas, start + (0.24, 0.12)))
 
 
 def test_live_preview_can_be_switched_off(qtbot, make_window):
