@@ -376,22 +376,24 @@ class SketchCanvas(CanvasPainting, QWidget):
         self.message.emit(f"Contact added: {cmd.describe_contact(contact)}")
 
     def _press_erase(self, uv):
+        """Erase what is under the pointer: a joint, else the object key whose outline holds it
+        (a box is clicked inside, where paths and contacts cross it too), else a stroke or a
+        contact line; the status bar says what went (Ctrl+Z brings it back)."""
         doc = self._doc
-        joint = self._joint_at(uv)
+        joint, obj = self._joint_at(uv), self._object_at(uv)
+        contact, stroke = self._contact_at(uv), self._stroke_at(uv)
         if joint:
-            doc.undo_stack.push(cmd.DeleteKeyposeJoint(doc, joint[0], doc.frame, joint[1]))
+            edit = cmd.DeleteKeyposeJoint(doc, joint[0], doc.frame, joint[1])
+        elif obj:
+            edit = cmd.DeleteObjectKey(doc, obj[1])
+        elif stroke:
+            edit = cmd.EraseStroke(doc, *stroke)
+        elif contact is not None:
+            edit = cmd.DeleteContact(doc, contact)
+        else:
             return
-        stroke = self._stroke_at(uv)
-        if stroke:
-            doc.undo_stack.push(cmd.EraseStroke(doc, *stroke))
-            return
-        contact = self._contact_at(uv)
-        if contact is not None:
-            doc.undo_stack.push(cmd.DeleteContact(doc, contact))
-            return
-        obj = self._object_at(uv)
-        if obj:
-            doc.undo_stack.push(cmd.DeleteObjectKey(doc, obj[1]))
+        doc.undo_stack.push(edit)
+        self.message.emit(f"{edit.text()} (Ctrl+Z brings it back)")
 
     # ---- tools: release ------------------------------------------------------------------------
     def _drag_edit(self, g: _Gesture) -> cmd.StoryboardCommand | None:

@@ -128,15 +128,24 @@ class Timeline(QWidget):
         elif kind == "span":
             self._doc.set_span((data, frame))
         else:
+            frame = self._between_neighbours(data[0], data[1], frame)
             self._drag = ("marker", (data[0], data[1], frame))
             self._doc.set_frame(frame)
             self.update()
+
+    def _between_neighbours(self, track: Track, old: int, frame: int) -> int:
+        """frame, kept between the keys either side of the dragged one on its track: a key does
+        not pass over or replace another (dragged past the timeline's end, the last one went)."""
+        frames = self.key_frames(track)
+        before = max((f for f in frames if f < old), default=-1)
+        after = min((f for f in frames if f > old), default=self._doc.storyboard.length)
+        return int(np.clip(frame, before + 1, after - 1))
 
     def mouseReleaseEvent(self, event):
         drag, self._drag = self._drag, None
         if drag and drag[0] == "marker":
             track, old, _ = drag[1]
-            new = self._frame(event.position().x())
+            new = self._between_neighbours(track, old, self._frame(event.position().x()))
             if new != old:
                 self._doc.undo_stack.push(cmd.RetimeKeyframe(self._doc, track.kind, track.owner, old, new))
 

@@ -116,6 +116,12 @@ def test_object_contact_and_erase_tools(qtbot, canvas):
     t = doc.storyboard.trajectories[0]
     qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, t.points[len(t.points) // 3]))
     assert len(doc.storyboard.trajectories) == count - 1
+    assert messages[-1] == "Erase trajectory (Ctrl+Z brings it back)"
+    doc.set_frame(90)                      # inside the box drawn there: the box goes, whatever crosses it
+    keys = len(doc.storyboard.object_keys)
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, key.outline.mean(axis=0)))
+    assert len(doc.storyboard.object_keys) == keys - 1 and len(doc.storyboard.trajectories) == count - 1
+    assert messages[-1].startswith("Delete object key")
     doc.storyboard.validate()
 
 

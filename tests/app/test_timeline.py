@@ -50,6 +50,18 @@ def test_drag_a_marker_to_retime_then_undo(qtbot, timeline, doc):
     assert cmd.find_keypose(doc.storyboard, "B", 60) is not None
 
 
+def test_a_marker_stops_at_its_neighbours_and_replaces_none(qtbot, timeline, doc):
+    before = sorted(k.frame for k in doc.storyboard.keyposes if k.agent == "B")
+    assert before == [0, 60, 119]
+    qtbot.mousePress(timeline, Qt.LeftButton, pos=at(timeline, 60, row=1))
+    qtbot.mouseMove(timeline, at(timeline, 100, row=1))
+    qtbot.mouseRelease(timeline, Qt.LeftButton, pos=QPoint(timeline.width() + 50, at(timeline, 0, row=1).y()))
+    assert sorted(k.frame for k in doc.storyboard.keyposes if k.agent == "B") == [0, 118, 119]   # past the end
+    qtbot.mousePress(timeline, Qt.LeftButton, pos=at(timeline, 118, row=1))
+    qtbot.mouseRelease(timeline, Qt.LeftButton, pos=at(timeline, 0, row=1))
+    assert sorted(k.frame for k in doc.storyboard.keyposes if k.agent == "B") == [0, 1, 119]
+
+
 def test_double_click_adds_a_copy_of_the_previous_keypose(qtbot, timeline, doc):
     qtbot.mouseDClick(timeline, Qt.LeftButton, pos=at(timeline, 30, row=0))
     added = cmd.find_keypose(doc.storyboard, "A", 30)
