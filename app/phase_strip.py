@@ -18,6 +18,8 @@ PHASE_COLORS = ("#8ecae6", "#ffb703", "#8f5fbf")   # approach, contact, carry
 PLAYHEAD = "#d1495b"
 LANE = 0.16                                          # height of one contact-span lane (plot units)
 EMPTY_HINT = "phases appear while generating"
+MAX_POINTS = 1000   # per curve: the strip is narrower than this in pixels, and a 240 fps x 120 s
+                    # clip's 28800 points took 0.75 s to redraw at every streamed step
 
 
 def phase_legend_html() -> str:
@@ -67,9 +69,10 @@ class PhaseStrip(pg.PlotWidget):
         else:
             phase = np.clip(np.asarray(phase, float), 0, None)
             stacked = np.vstack([np.zeros(len(phase)), np.cumsum(phase, axis=1).T])
-        x = np.arange(stacked.shape[1], dtype=float)
+        frames = stacked.shape[1]
+        x = np.unique(np.append(np.arange(0, frames, -(-frames // MAX_POINTS)), frames - 1)) if frames else np.arange(0)
         for curve, y in zip(self._curves, stacked):
-            curve.setData(x, y)
+            curve.setData(x.astype(float), y[x])
         self.empty_hint.setVisible(phase is None)
 
     def show_document_phase(self) -> None:

@@ -5,7 +5,7 @@ from PySide6.QtCore import QPoint, Qt
 
 from app import commands as cmd
 from app.document import Document
-from app.phase_strip import PhaseStrip
+from app.phase_strip import MAX_POINTS, PhaseStrip
 from app.timeline import RULER_H, ROW_H, Timeline, frame_to_x
 
 from .fakes import phase_schedule, sample_storyboard
@@ -80,6 +80,11 @@ def test_phase_strip_shows_stacked_occupancy_and_scrubs(qtbot, doc):
     assert tops[1] == pytest.approx(phase[:, 0]) and tops[3] == pytest.approx(np.ones(len(phase)), abs=1e-6)
     qtbot.mouseClick(strip.viewport(), Qt.LeftButton, pos=QPoint(strip.width() // 2, 40))
     assert 40 < doc.frame < 80
+    long = np.repeat(phase, 240, axis=0)                     # 28800 frames: a 2-minute clip at 240 fps
+    strip.set_phase(long)
+    x, top = strip._curves[1].getData()
+    assert len(x) <= MAX_POINTS + 1 and x[0] == 0 and x[-1] == len(long) - 1
+    assert top == pytest.approx(long[x.astype(int), 0])
 
 
 def test_empty_phase_strip_shows_a_hint(qtbot, doc):
