@@ -11,8 +11,9 @@ A 2D sketch does not give depth; the ground does. Every sketched joint slides al
 ray to a depth that keeps the generated pose's depth differences along its bones while the feet
 it stands on touch the ground (a least-squares fit); a slide of the whole figure along the
 viewing direction keeps the sketch exact. Pelvis paths are lifted to where the stroke's ray
-meets the pelvis height at which the lower foot touches the ground; they leave the keyposes
-where the warp put them.
+meets the pelvis height at which the lower foot touches the ground, and walked from their first
+point at their first frame to their last at their last; they leave the keyposes where the warp
+put them.
 
 Joint arrays are (N, H, 22, 3) in metres with consistent bone lengths: `offsets` (H, 22, 3) are
 each person's bones, FK(joints[:, h, 0], IK(joints[:, h], offsets[h]), offsets[h]) == joints.
@@ -199,6 +200,8 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig 
             continue
         h = storyboard.agent_index(stroke.agent)
         span = np.arange(stroke.start, min(stroke.end, n - 1) + 1)
+        keys = key_frames(storyboard)[h]
+        out[:, h] += _to_stroke_ends(out[:, h], stroke, span, keys, cam, config)[:, None, :]
         for _ in range(config.path_passes):
             pelvis = out[span, h, PELVIS]
             height = pelvis[:, 1] + _grounding_height(out[span, h], config.foot_height)
@@ -210,11 +213,36 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig 
             shift = gaussian_filter1d(lifted - pelvis, config.path_smoothing, axis=0, mode="nearest")
             # The span's offsets, held at its ends and faded out beyond them.
             full = spread(n, list(span), shift, config.falloff)
-            keys = key_frames(storyboard)[h]
             if keys:   # the keyposes are placed already (depth included): the path moves the rest
                 full -= spread(n, keys, full[keys], config.falloff)
             out[:, h] += full[:, None, :]
     return out
+
+
+def _to_stroke_ends(person: np.ndarray, stroke, span: np.ndarray, keys: list[int],
+                    camera: StoryboardCamera, config: WarpConfig) -> np.ndarray:
+    """Offsets (N, 3) of one person (N, 22, 3) that put the pelvis on a stroke's first point at
+    its first frame and on its last point at its last, growing evenly over the span between
+    (and fading out beyond it, and to nothing at the person's keyframes, which are placed). A
+    stroke says where a walk begins and ends, and when: walked only as far as the generated
+    motion went, a 1.8 m walk keyed only at its start ended at 61% of the way (20-23% with
+    other seeds)."""
+    n = len(person)
+    if len(span) < 2:
+        return np.zeros((n, 3))
+    ends = [int(span[0]), int(span[-1])]
+    pelvis = person[ends, PELVIS]
+    height = pelvis[:, 1] + _grounding_height(person[ends], config.foot_height)
+    if stroke.floor is not None:
+        xz = np.asarray(stroke.floor, float)[[0, -1]]
+        targets = np.stack([xz[:, 0], height, xz[:, 1]], -1)
+        off = np.linalg.norm(pelvis[:, [0, 2]] - xz, axis=-1)
+    else:
+        targets = camera.unproject_to_height(np.asarray(stroke.points, float)[[0, -1]], height)
+        off = np.linalg.norm(camera.project(pelvis) - np.asarray(stroke.points, float)[[0, -1]], axis=-1)
+    shift = np.where((off > config.path_tolerance)[:, None], targets - pelvis, 0.0) * (1.0, 0.0, 1.0)
+    full = spread(n, ends, shift, config.falloff)
+    return full - spread(n, keys, full[keys], config.falloff) if keys else full
 
 
 def _towards_path(points: np.ndarray, path: np.ndarray, tolerance: float) -> np.ndarray:

@@ -1,4 +1,6 @@
 """Motion warping onto keyposes and pelvis paths (engine/finishing/warp.py) and the finishing pass."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.ndimage import maximum_filter1d
@@ -129,6 +131,23 @@ def test_follow_paths_puts_the_pelvis_on_its_stroke_and_leaves_the_keyposes_wher
         assert err(moved) < 0.035 < 0.07 < err(joints)
     for h, frames in enumerate(key_frames(sb)):
         np.testing.assert_allclose(moved[frames, h], keyed[frames, h], atol=1e-9)
+
+
+def test_a_stroke_keyed_only_at_its_start_is_walked_to_its_end(scene):
+    """The people stand still in the generated motion; their pelvis strokes (keys only at the
+    first frame) still take them from the strokes' first points to their last, going on evenly."""
+    clip, sb = scene
+    sb = replace(sb, keyposes=[k for k in sb.keyposes if k.frame == 0])
+    joints, offsets = consistent_skeleton(np.repeat(clip.joints[:1], len(clip.joints), axis=0))
+    moved = follow_paths(warp_to_keyposes(joints, offsets, sb), sb)
+    strokes = [t for t in sb.trajectories if t.joint == "pelvis"]
+    assert strokes
+    for stroke in strokes:
+        h = sb.agent_index(stroke.agent)
+        pelvis = sb.camera.project(moved[stroke.start:stroke.end + 1, h, 0])
+        assert np.linalg.norm(pelvis[-1] - stroke.points[-1]) < 0.04
+        along = np.linalg.norm(pelvis - stroke.points[0], axis=-1)           # a stroke that goes away
+        assert np.all(np.diff(along) > -0.01) and along[len(along) // 2] > 0.25 * along[-1]
 
 
 def test_finish_leaves_a_motion_that_already_matches_its_sketch_nearly_alone(scene):
