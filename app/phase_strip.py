@@ -18,6 +18,7 @@ PHASE_COLORS = ("#8ecae6", "#ffb703", "#8f5fbf")   # approach, contact, carry
 PLAYHEAD = "#d1495b"
 LANE = 0.16                                          # height of one contact-span lane (plot units)
 EMPTY_HINT = "phases appear while generating"
+NO_CONTACTS_HINT = "no contacts or objects: no phases to plan"
 MAX_POINTS = 1000   # per curve: the strip is narrower than this in pixels, and a 240 fps x 120 s
                     # clip's 28800 points took 0.75 s to redraw at every streamed step
 
@@ -62,8 +63,14 @@ class PhaseStrip(pg.PlotWidget):
         self.show_document_phase()
 
     def set_phase(self, phase: np.ndarray | None) -> None:
-        """Show an occupancy (N, 3), rows summing to 1; None shows an empty strip."""
-        n = self._doc.storyboard.length
+        """Show an occupancy (N, 3), rows summing to 1; None shows an empty strip, and so does a
+        storyboard with neither contacts nor objects (the planner's "carry" there carries nothing)."""
+        sb = self._doc.storyboard
+        n = sb.length
+        idle = not (sb.contacts or sb.objects)
+        self.empty_hint.setText(NO_CONTACTS_HINT if idle else EMPTY_HINT)
+        if idle:
+            phase = None
         if phase is None:
             stacked = np.zeros((len(PHASES) + 1, n))
         else:
@@ -91,6 +98,7 @@ class PhaseStrip(pg.PlotWidget):
         self.getPlotItem().setRange(xRange=(0, sb.length - 1), yRange=(bottom, 1.0), padding=0)
         self.empty_hint.setPos((sb.length - 1) / 2, 0.5)
         self._playhead.setValue(self._doc.frame)
+        self.show_document_phase()
 
     # ---- scrubbing ---------------------------------------------------------------------------
     def _scrub(self, event) -> None:

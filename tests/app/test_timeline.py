@@ -1,4 +1,6 @@
 """Timeline and phase strip: scrub, retime by dragging a marker, add and span with the mouse."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, Qt
@@ -95,6 +97,10 @@ def test_empty_phase_strip_shows_a_hint(qtbot, doc):
     assert not strip.empty_hint.isVisible()
     strip.set_phase(None)
     assert strip.empty_hint.isVisible()
+    alone = replace(doc.storyboard, contacts=[], objects=[], object_keys=[], object_paths=[])
+    doc.replace_storyboard(alone, None)       # two people walking: nothing is approached or carried
+    strip.set_phase(phase_schedule(doc.storyboard.length, 0.7))
+    assert strip.empty_hint.isVisible() and "no contacts" in strip.empty_hint.toPlainText()
 
 
 def test_a_keys_hold_and_ease_are_set_in_properties_and_drawn_on_the_timeline(qtbot, make_window):
