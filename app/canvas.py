@@ -10,11 +10,9 @@ import copy
 from dataclasses import dataclass, field
 
 import numpy as np
-from PySide6.QtCore import QPointF, Qt, Signal
-from PySide6.QtGui import QPainterPath, QPolygonF
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QWidget
 
-from engine.geometry.polylines import point_polyline_distance
 from engine.poses import standing_pose_2d
 from engine.rig import drag_pose
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES
@@ -22,12 +20,12 @@ from engine.storyboard import SKETCH_LIMIT_M, Contact, ObjectPath, Trajectory
 
 from . import commands as cmd
 from .canvas_paint import CanvasPainting
+from .canvas_scene import CanvasScene
 from .document import OBJECT_PATH, Document
 from .strokes import clean_stroke, splice
 
 HIT_PX = 9.0            # how close (pixels) a click must be to a joint, stroke or anchor
 FRAME_MARGIN_PX = 40.0  # free border around the sketch when framing it
-HAND_NAMES = {"left": "l_wrist", "right": "r_wrist"}
 
 
 @dataclass
@@ -42,7 +40,7 @@ class _Gesture:
     mode: str = "rig"                     # joint drags: engine.rig's mode, from the keys held at the press
 
 
-class SketchCanvas(CanvasPainting, QWidget):
+class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
     message = Signal(str)   # a hint for the status bar
     dragged = Signal(object)   # Storyboard: a copy with the joint or object drag in progress applied
     dragEnded = Signal()       # a joint or object drag was released (its edit is in the document)
@@ -124,131 +122,6 @@ class SketchCanvas(CanvasPainting, QWidget):
 
     def _hit(self) -> float:
         return HIT_PX / self.zoom
-
-    # ---- what is on screen at the playhead -----------------------------------------------------
-    def _keypose_points(self, agent: str, frame: int) -> tuple[np.ndarray, np.ndarray] | None:
-        """(points (22, 2), mask (22,)) of the keypose, with a joint drag in progress applied."""
-        k = cmd.find_keypose(self._doc.storyboard, agent, frame)
-        if k is None:
-            return None
-        points, mask = k.points.copy(), k.mask.copy()
-        g = self._gesture
-        if g and g.kind == "joint" and g.agent == agent and frame == self._doc.frame:
-            points = self._posed(g)
-        return points, mask
-
-    def _object_outline(self, object_id: str, frame: int) -> tuple[int, np.ndarray, bool] | None:
-        """(index, outline, exact) of the object's key at the frame, else its latest earlier key."""
-        keys = [(i, k) for i, k in enumerate(self._doc.storyboard.object_keys) if k.object == object_id]
-        if not keys:
-            return None
-        exact = [(i, k) for i, k in keys if k.frame == frame]
-        earlier = [(i, k) for i, k in keys if k.frame < frame]
-        if exact:
-            i, k = exact[0]
-        elif earlier:
-            i, k = max(earlier, key=lambda ik: ik[1].frame)
-        else:
-            i, k = min(keys, key=lambda ik: ik[1].frame)
-        outline = k.outline
-        g = self._gesture
-        if g and g.kind == "move_object" and g.index == i:
-            outline = outline + (g.points[-1] - g.points[0])
-        return i, outline, bool(exact)
-
-    def _anchors_2d(self, object_id: str, outline: np.ndarray) -> np.ndarray:
-        """The object's K grasp anchors in the sketch (K, 2): on its -x end at the outline's left side,
-        +x at the right, each moved by its depth (local z) as the camera sees it (near / far grips)."""
-        lo, hi = outline.min(axis=0), outline.max(axis=0)
-        anchors = self._doc.storyboard.objects[self._doc.storyboard.object_index(object_id)].spec.anchors
-        sides = np.where(anchors[:, :1] < 0, [[lo[0], (lo[1] + hi[1]) / 2]], [[hi[0], (lo[1] + hi[1]) / 2]])
-        depth = np.stack([np.zeros(len(anchors)), np.zeros(len(anchors)), anchors[:, 2]], -1)
-        return sides + depth @ self._doc.storyboard.camera.basis()[:2].T
-
-    def _hand_position(self, agent: str, hand: str) -> np.ndarray | None:
-        j = JOINT_INDEX[HAND_NAMES[hand]]
-        kp = self._keypose_points(agent, self._doc.frame)
-        if kp is not None and kp[1][j]:
-            return kp[0][j]
-        clip = self._doc.clip
-        if clip is not None:
-            h = self._doc.storyboard.agent_index(agent)
-            if h < clip.num_humans:
-                return self._doc.storyboard.camera.project(clip.joints[min(self._doc.frame, clip.num_frames - 1), h, j])
-        return None
-
-    # ---- hit tests -------------------------------------------------------------------------------
-    def _joint_at(self, uv) -> tuple[str, int] | None:
-        """(agent, joint index) of the keypose joint under uv at the playhead, selected agent first."""
-        sb, frame = self._doc.storyboard, self._doc.frame
-        agents = sorted((a.id for a in sb.agents), key=lambda a: a != self._doc.selection.agent)
-        for agent in agents:
-            kp = self._keypose_points(agent, frame)
-            if kp is None:
-                continue
-            d = np.linalg.norm(kp[0] - uv, axis=-1)
-            d[~kp[1]] = np.inf
-            j = int(np.argmin(d))
-            if d[j] < self._hit():
-                return agent, j
-        return None
-
-    def _stroke_at(self, uv) -> tuple[str, int] | None:
-        sb = self._doc.storyboard
-        for field_name in ("trajectories", "object_paths"):
-            for i, s in enumerate(getattr(sb, field_name)):
-                if point_polyline_distance([uv], s.points)[0] < self._hit():
-                    return field_name, i
-        return None
-
-    def _object_at(self, uv) -> tuple[str, int] | None:
-        """(object id, key index) of an object key at the playhead containing uv."""
-        for obj in self._doc.storyboard.objects:
-            found = self._object_outline(obj.id, self._doc.frame)
-            if found and found[2]:
-                path = QPainterPath()
-                path.addPolygon(QPolygonF([QPointF(*p) for p in found[1]]))
-                if path.contains(QPointF(*uv)):
-                    return obj.id, found[0]
-        return None
-
-    def _anchor_at(self, uv) -> tuple[str, int] | None:
-        for obj in self._doc.storyboard.objects:
-            found = self._object_outline(obj.id, self._doc.frame)
-            if found:
-                d = np.linalg.norm(self._anchors_2d(obj.id, found[1]) - uv, axis=-1)
-                if d.min() < 2 * self._hit():
-                    return obj.id, int(np.argmin(d))
-        return None
-
-    def _hand_at(self, uv, other_than: str | None = None) -> tuple[str, str] | None:
-        """(agent, hand) of the hand nearest uv within reach of a click, of any agent but
-        `other_than` (at a hand-off both people's hands are under the pointer)."""
-        found = [(float(np.linalg.norm(p - uv)), agent.id, hand) for agent in self._doc.storyboard.agents
-                 if agent.id != other_than for hand in ("left", "right")
-                 for p in [self._hand_position(agent.id, hand)] if p is not None]
-        distance, agent, hand = min(found, default=(np.inf, None, None))
-        return (agent, hand) if distance < 2 * self._hit() else None
-
-    def _contact_at(self, uv) -> int | None:
-        for i, c in enumerate(self._doc.storyboard.contacts):
-            ends = self._contact_ends(c)
-            if ends is not None and point_polyline_distance([uv], ends)[0] < self._hit():
-                return i
-        return None
-
-    def _contact_ends(self, c: Contact) -> np.ndarray | None:
-        """(2, 2): the hand and what it holds, when both are visible at the playhead."""
-        if not c.start <= self._doc.frame <= c.end:
-            return None
-        hand = self._hand_position(c.agent, c.hand)
-        if c.object is not None:
-            found = self._object_outline(c.object, self._doc.frame)
-            anchors = self._anchors_2d(c.object, found[1]) if found else None
-            other = anchors[c.anchor] if anchors is not None and c.anchor < len(anchors) else None
-        else:
-            other = self._hand_position(c.other_agent, c.other_hand)
-        return None if hand is None or other is None else np.stack([hand, other])
 
     # ---- mouse ---------------------------------------------------------------------------------
     def mousePressEvent(self, event):

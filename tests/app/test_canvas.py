@@ -1,4 +1,6 @@
 """Sketching on the canvas with real mouse events."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, Qt
@@ -8,7 +10,7 @@ from app.canvas import SketchCanvas
 from app.document import Document
 from engine.skeleton import JOINT_INDEX
 
-from .fakes import sample_storyboard
+from .fakes import sample_storyboard, walking_clip
 
 
 @pytest.fixture
@@ -123,6 +125,23 @@ def test_object_contact_and_erase_tools(qtbot, canvas):
     assert len(doc.storyboard.object_keys) == keys - 1 and len(doc.storyboard.trajectories) == count - 1
     assert messages[-1].startswith("Delete object key")
     doc.storyboard.validate()
+
+
+def test_a_contact_line_goes_to_the_generated_grip_between_object_keys(qtbot, canvas):
+    doc = canvas._doc
+    sb = sample_storyboard()
+    doc.replace_storyboard(sb, None)
+    c = next(c for c in sb.contacts if c.object)
+    frame = next(k.frame for k in sb.keyposes if k.agent == c.agent and c.start <= k.frame <= c.end
+                 and all(o.frame != k.frame for o in sb.object_keys))
+    doc.set_frame(frame)
+    stale = canvas._contact_ends(c)[1]                         # no motion yet: the latest key's grip
+    clip = walking_clip(sb.length, sb.fps)
+    anchors = np.zeros((sb.length, 1, 4, 3)) + (0.7, 1.0, -0.4)
+    doc.set_result([replace(clip, obj_anchors=anchors)], None)
+    grip = canvas._contact_ends(c)[1]
+    assert np.allclose(grip, sb.camera.project(anchors[frame, 0, c.anchor]))
+    assert np.linalg.norm(grip - stale) > 0.1
 
 
 def test_wheel_zoom_keeps_the_point_under_the_cursor(qtbot, canvas):
