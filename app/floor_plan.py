@@ -38,6 +38,7 @@ from .document import Document
 from .poses import key_facing, known_depth
 from .strokes import clean_stroke
 
+LABEL_PX = 14.0   # key labels closer than this (pixels) merge, or stack
 DISC_R = 7.0          # px
 GRID_M = 1.0          # metres between grid lines
 ARROW_M = 0.45        # length of a facing arrow on the floor
@@ -250,6 +251,7 @@ class FloorPlan(QWidget):
                 p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._walk(t)]))
         self._paint_objects(p)
         moving = self._drag[1] if self._drag and self._drag[0] == "figure" else None
+        labels: list[list] = []      # [x, y, agent, frames]: keys standing together share one label
         for k in sorted(sb.keyposes, key=lambda k: k.frame):
             xz = standing_place(sb, k)
             if k is moving:
@@ -260,8 +262,15 @@ class FloorPlan(QWidget):
             p.setPen(QPen(QColor("#1d1d1d") if current else colors[k.agent].darker(150), 2.4 if current else 1))
             p.setBrush(colors[k.agent])
             p.drawEllipse(QPointF(x, y), DISC_R, DISC_R)
-            p.setPen(QColor("#3a3a3a"))
-            p.drawText(QPointF(x + DISC_R + 2, y - 2), f"{k.agent} {k.frame}")
+            near = next((lab for lab in labels if lab[2] == k.agent and np.hypot(lab[0] - x, lab[1] - y) < LABEL_PX), None)
+            if near:
+                near[3].append(k.frame)
+            else:
+                labels.append([x, y, k.agent, [k.frame]])
+        p.setPen(QColor("#3a3a3a"))
+        for i, (x, y, agent, frames) in enumerate(labels):   # another person's label nearby: the next line
+            below = sum(np.hypot(x - lab[0], y - lab[1]) < LABEL_PX for lab in labels[:i])
+            p.drawText(QPointF(x + DISC_R + 2, y - 2 + LABEL_PX * below), f"{agent} {', '.join(map(str, frames))}")
         if self._drag and self._drag[0] == "walk" and len(self._drag[2]) > 1:
             p.setPen(QPen(colors.get(doc.selection.agent, QColor("#333")), 2))
             p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._drag[2]]))
