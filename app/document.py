@@ -200,7 +200,7 @@ class Document(QObject):
         self.takes = (self.takes[:-1] if drafts else self.takes) + [take]
         self.takes = self.takes[-MAX_TAKES:]
         self._unsaved_without_edits = True
-        self.choose_take(len(self.takes) - 1, force=True)
+        self.choose_take(len(self.takes) - 1, force=True, restore_settings=False)   # the panel may have moved on
         self._emit_dirty()
 
     def set_takes(self, takes: list[Take]) -> None:
@@ -208,7 +208,7 @@ class Document(QObject):
         self.takes = list(takes)[-MAX_TAKES:]
         self.choose_take(len(self.takes) - 1, force=True)
 
-    def choose_take(self, index: int, force: bool = False) -> None:
+    def choose_take(self, index: int, force: bool = False, restore_settings: bool = True) -> None:
         """Show take `index`; the generation settings become the ones it was made with."""
         if 0 <= index < len(self.takes) and (force or index != self.take_index):
             take = self.takes[index]
@@ -216,7 +216,8 @@ class Document(QObject):
             self.phase = take.clip.phase
             self._result_source = take.source
             self.take_index = index
-            self.set_settings(settings_of(take.settings, self.settings))
+            if restore_settings:
+                self.set_settings(settings_of(take.settings, self.settings))
             self.resultChanged.emit()
 
     def choose_variation(self, index: int) -> None:

@@ -30,6 +30,8 @@ class FileActions:
     """Mixed into MainWindow: needs self.doc, self.settings, self.viewport, self.autosaver,
     self.recent_menu and QMainWindow's statusBar()."""
 
+    _unread_takes: Path | None = None   # the opened storyboard's takes file that could not be read
+
     # ---- files ----------------------------------------------------------------------------------
     def error(self, message: str) -> None:
         QMessageBox.critical(self, APP_NAME, message)
@@ -48,6 +50,7 @@ class FileActions:
     def new_document(self) -> None:
         if self.maybe_save():
             self.doc.replace_storyboard(new_storyboard(), None)
+            self._unread_takes = None
 
     def open_file(self, path: str | Path | None = None) -> bool:
         if not self.maybe_save():
@@ -62,10 +65,12 @@ class FileActions:
         self.doc.replace_storyboard(storyboard, Path(path))
         self._remember(Path(path))
         takes = takes_path(path)
+        self._unread_takes = None
         if takes.exists():
             try:
                 self.doc.set_takes(load_takes(takes))
             except TakesError as e:
+                self._unread_takes = takes.resolve()
                 self.error(f"Opened {Path(path).name} without its takes: {e}")
                 return True
         count = len(self.doc.takes)
@@ -89,6 +94,7 @@ class FileActions:
         if storyboard is None:
             return False
         self.doc.replace_storyboard(storyboard, None)
+        self._unread_takes = None
         self.statusBar().showMessage(f"Opened the example \u201c{storyboard.text or Path(path).stem}\u201d; "
                                      "Ctrl+Enter generates.", 8000)
         return True
@@ -119,13 +125,12 @@ class FileActions:
 
     def _save_takes(self, path: Path) -> None:
         """The document's takes beside the storyboard at path. Without takes, a takes file there
-        is another storyboard's (saved over) and goes, unless it is this one's own that could not
-        be read when it was opened (the person was told; it is left for them)."""
+        is another storyboard's (saved over) and goes, unless it is the one this storyboard was
+        opened with and could not read (the person was told; it is left for them)."""
         target = takes_path(path)
         if self.doc.takes:
             save_takes(self.doc.takes, target)
-        elif target.exists() and not (self.doc.path is not None and Path(self.doc.path).resolve() == path.resolve()
-                                      and not _readable_takes(target)):
+        elif target.exists() and target.resolve() != self._unread_takes:
             target.unlink()
 
     def _last_dir(self) -> str:
@@ -279,10 +284,3 @@ class FileActions:
         self.statusBar().showMessage("Recovered unsaved work; save it to keep it.", 8000)
         return True
 
-
-def _readable_takes(path: Path) -> bool:
-    try:
-        load_takes(path)
-    except TakesError:
-        return False
-    return True

@@ -65,3 +65,13 @@ def test_saving_over_a_storyboard_with_takes_drops_its_takes(qtbot, make_window,
     assert not takes_path(path).exists()                                    # not the old scene's motion
     reopened = make_window()
     assert reopened.open_file(path) and reopened.doc.takes == [] and reopened.doc.clip is None
+
+
+def test_a_setting_changed_during_a_generation_stays_when_its_take_arrives(qtbot, make_window):
+    window = make_window(generate=FakeSampler(delay_s=0.05))
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    window.doc.set_settings(GenerationSettings(steps=3, seed=4))
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
+        window.generate()
+        window.properties.seed.setValue(9)                     # typed while it runs
+    assert window.doc.takes[-1].seed == 4 and window.properties.seed.value() == 9
