@@ -20,6 +20,7 @@ import time
 from dataclasses import asdict, replace
 from collections.abc import Callable
 
+import numpy as np
 from PySide6.QtCore import QObject, QTimer, Signal
 
 from engine.sampling.events import GenerationResult, StepEvent
@@ -32,9 +33,9 @@ from .worker import GenerationRunner
 
 # A preview request newer than the running preview waits for it while the drag goes on (cancelled
 # at every request, a preview that takes 0.1-0.2 s never finished under a pointer moving every
-# 16 or 50 ms); once requests stop for SETTLE_MS (the pointer rests), a running preview less than
-# half done gives way to the newest at once.
-SETTLE_MS = 40
+# 16 or 50 ms); once requests stop (the pointer rests: no request for 2.5 times the recent gap
+# between them, within SETTLE_MS), a running preview less than half done gives way to the newest.
+SETTLE_MS = (40, 200)
 
 
 class GenerationSession(QObject):
@@ -63,7 +64,7 @@ class GenerationSession(QObject):
         self._preview_s = 0.15       # how long a preview takes here (the last finished one's time)
         self._settle = QTimer(self)
         self._settle.setSingleShot(True)
-        self._settle.setInterval(SETTLE_MS)
+        self._last_request, self._request_gap = 0.0, 0.0   # s: of preview requests, while a drag goes on
         self._settle.timeout.connect(self._on_settled)
         self._runner.runningChanged.connect(self.runningChanged)
         self._runner.step.connect(self._on_step)
@@ -108,10 +109,16 @@ class GenerationSession(QObject):
 
     def _queue(self, storyboard: Storyboard, settings: GenerationSettings) -> None:
         self._pending = (storyboard, settings)
+        if settings.preview:
+            now = time.monotonic()
+            gap = now - self._last_request
+            if gap < SETTLE_MS[1] / 1000:      # the same drag: how often its requests come
+                self._request_gap = 0.7 * self._request_gap + 0.3 * gap
+            self._last_request = now
         if not self.running:
             self._start_pending()
-        elif settings.preview and self.settings.preview:
-            self._settle.start()            # restarted by every request: fires when they stop
+        elif settings.preview and self.settings.preview:   # restarted by every request: fires when they stop
+            self._settle.start(int(np.clip(2500 * self._request_gap, *SETTLE_MS)))
         else:
             self._runner.cancel()           # its end starts the pending request
 
