@@ -32,6 +32,8 @@ FEET = (JOINT_INDEX["l_foot"], JOINT_INDEX["r_foot"])
 ANKLES = (JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"])
 KNEES = (JOINT_INDEX["l_knee"], JOINT_INDEX["r_knee"])
 HIPS = (JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"])
+SHOULDERS = (JOINT_INDEX["l_shoulder"], JOINT_INDEX["r_shoulder"])
+ELBOWS = (JOINT_INDEX["l_elbow"], JOINT_INDEX["r_elbow"])
 
 # Neutral rest skeleton (T-pose) as parent-relative offsets in metres.
 _HALF = {  # left side; the right side mirrors x

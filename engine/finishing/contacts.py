@@ -8,11 +8,12 @@ Three steps, run on decoded joint positions (N frames, H people, 22 joints, worl
    moves only while held (an upright yaw + translation fit of its grips to the holding wrists,
    turning with the holder's chest while one person alone holds it, at a height every holder's
    arm reaches), resting on the ground before, between and after
-   holds, where the sketch puts it.
+   holds, where the sketch puts it (holds a few frames from each other or from the clip's ends
+   are one, where the sketch does not put it down: an artist's spans are a few frames off).
 2. `reach_contacts` moves each contact's wrist onto its grip (or the other person's hand) by
    exact two-bone IK from the shoulder, eased in before the span and out after it. Only elbows
    and wrists move, and every bone keeps its length; an elbow whose arm would pass through an
-   object swivels about the shoulder-wrist line until it does not.
+   object swivels about the shoulder-wrist line until it does not (swivel.py).
 """
 from __future__ import annotations
 
@@ -22,24 +23,23 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ..body import BONES, JOINT_RADII, body_points
+from ..body import BONES, body_points
+from ..camera import StoryboardCamera
 from ..geometry.rotations import normalize, quat_to_matrix
 from ..objects import ObjectSpec, local_to_world, world_to_local
-from ..skeleton import HANDS, JOINT_INDEX, JOINT_NAMES
+from ..skeleton import ELBOWS, HANDS, JOINT_NAMES, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from ..synth.props import pose_array
 from ..synth.reach import UP, heading_of, steady_pole, two_bone_ik, yaw_matrix
 from ..synth.trajectory import blend_yaw, smoothstep
+from .swivel import swivel_clear
 
-SHOULDERS = (JOINT_INDEX["l_shoulder"], JOINT_INDEX["r_shoulder"])
-ELBOWS = (JOINT_INDEX["l_elbow"], JOINT_INDEX["r_elbow"])
 GRAVITY = 9.81  # m/s^2
 _ARM = [*ELBOWS, *HANDS]
 # engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
 BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
                         + [child not in _ARM for _, child in BONES])
-SWIVELS = np.deg2rad(np.arange(-180, 180, 5))  # elbow angles about the shoulder-wrist line tried
                                                # to take a forearm out of an object (0 included)
 
 
@@ -203,10 +203,11 @@ def _carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma
 
 
 def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
-              spec: ObjectSpec, fps: float, config: ContactConfig, rests: list[np.ndarray | None]) -> np.ndarray:
+              spec: ObjectSpec, fps: float, config: ContactConfig, rests: list[np.ndarray | None],
+              camera: StoryboardCamera) -> np.ndarray:
     """One object's pose (N, 7) from joints (N, H, 22, 3), the local grip each hand holds
     (N, 2H, 3) where held (N, 2H), the decoded pose (N, 7) and its sketched resting places, one
-    (or None) per gap around the hold spans (see hold_object)."""
+    (or None) per gap around the hold spans (see hold_object), drawn through `camera`."""
     n, h = joints.shape[:2]
     wrists = joints[:, :, list(HANDS)].reshape(n, 2 * h, 3)
     decoded_yaw = _yaw_of(decoded[:, 3:])
@@ -232,17 +233,25 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
 
     # Holds fewer frames apart than a lift takes are one, and so is a hold that starts or ends that
     # close to the clip's ends: the artist's spans are a few frames off, not a drop and a pick-up
-    # (a box keyed on the floor one frame before its hold rose 1.1 m into the hands in six frames).
+    # (a box drawn in the hands one frame before its hold, read as resting on the floor 1.1 m
+    # away, rose into them in six frames). Not where the sketch puts it down elsewhere.
+    centre = np.array([0.0, spec.size[1] / 2, 0.0])
+
+    def in_hands(rest: np.ndarray | None, *frames: int) -> bool:
+        """Nothing sketched in a gap, or drawn where the hands hold it at one of its ends."""
+        return rest is None or min(np.linalg.norm(camera.project(rest + centre) - camera.project(fit_pos[f] + centre))
+                                   for f in frames) < max(spec.size)
+
     stretches, landings = [], []
-    for (start, end), landing in zip(spans, rests[1:]):
-        if stretches and start - stretches[-1][1] - 1 < config.lift_frames:
+    for k, ((start, end), landing) in enumerate(zip(spans, rests[1:])):
+        if stretches and start - stretches[-1][1] - 1 < config.lift_frames and in_hands(rests[k], stretches[-1][1], start):
             stretches[-1][1], landings[-1] = end, landing
         else:
             stretches.append([start, end])
             landings.append(landing)
-    if stretches[0][0] < config.lift_frames:
+    if stretches[0][0] < config.lift_frames and in_hands(rests[0], spans[0][0]):
         stretches[0][0] = 0
-    if n - 1 - stretches[-1][1] < config.lift_frames:
+    if n - 1 - stretches[-1][1] < config.lift_frames and in_hands(rests[-1], spans[-1][1]):
         stretches[-1][1] = n - 1
     carried = np.zeros(n, bool)
     for start, end in stretches:
@@ -302,7 +311,7 @@ def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
         bounds = [-1, *(f for span in true_spans(held.any(axis=1)) for f in span), n]   # gaps between the spans
         rests = [sketched_rest(storyboard, o, a + 1, b - 1) for a, b in zip(bounds[::2], bounds[1::2])]
         out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
-                              storyboard.fps, config, rests)
+                              storyboard.fps, config, rests, storyboard.camera)
     return out
 
 
@@ -394,71 +403,6 @@ def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storybo
     return target, weight
 
 
-def _arm_penetration(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
-                     specs: list[ObjectSpec]) -> np.ndarray:
-    """Deepest penetration (M, C), 0 where none, of an arm's spheres (upper-arm middle, elbow,
-    forearm middle; engine.metrics' radii) into any object or the ground. shoulder, wrist
-    (M, 1, 3); elbow (M, C, 3) C candidates; obj_pose (M, O, 7). The wrist is left out: it holds
-    on at its grip."""
-    s, e, w = (JOINT_RADII[j] for j in (SHOULDERS[0], ELBOWS[0], HANDS[0]))
-    radii = np.array([(s + e) / 2, e, (e + w) / 2])
-    points = np.stack(np.broadcast_arrays((shoulder + elbow) / 2, elbow, (elbow + wrist) / 2), axis=2)  # (M, C, 3, 3)
-    m, c = elbow.shape[:2]
-    depth = np.maximum(np.max(radii - points[..., 1], axis=-1), 0.0)
-    for o, spec in enumerate(specs):
-        local = world_to_local(points.reshape(m, -1, 3), obj_pose[:, o]).reshape(points.shape)
-        depth = np.maximum(depth, np.max(spec.penetration_local(local, radii), axis=-1))
-    return depth
-
-
-def _swivelled(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, angles: np.ndarray) -> np.ndarray:
-    """Elbows (M, 3) turned about the shoulder-wrist line (which keeps both bone lengths) by
-    angles (M,) or, for candidates, (M, C) radians -> (M, 3) or (M, C, 3)."""
-    axis = normalize(wrist - shoulder)
-    centre = shoulder + np.sum((elbow - shoulder) * axis, -1, keepdims=True) * axis
-    out = elbow - centre
-    if angles.ndim == 2:
-        axis, centre, out = axis[:, None], centre[:, None], out[:, None]
-    cos, sin = np.cos(angles)[..., None], np.sin(angles)[..., None]
-    return centre + cos * out + sin * np.cross(axis, out)
-
-
-def _swivel_clear(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
-                  specs: list[ObjectSpec], config: "ContactConfig", runs: list[np.ndarray]) -> np.ndarray:
-    """Elbows (M, 3) swivelled about the shoulder-wrist line to trade penetration into the objects
-    (obj_pose (M, O, 7)) against turning (config.swivel_cost metres of penetration per radian)
-    and against turning fast (config.swivel_change_cost per squared radian between frames): `runs`
-    are index arrays of the consecutive frames of one arm, along which the angles are chosen
-    together (a per-frame choice flipped elbows to the other side in one frame, by up to 40 cm).
-    shoulder, elbow, wrist (M, 3)."""
-    grid = np.broadcast_to(SWIVELS, (len(elbow), len(SWIVELS)))
-    candidates = _swivelled(shoulder, elbow, wrist, grid)                              # (M, C, 3)
-    depth = _arm_penetration(shoulder[:, None], candidates, wrist[:, None], obj_pose, specs)
-    score = depth + config.swivel_cost * np.abs(SWIVELS)
-    turn = np.angle(np.exp(1j * (SWIVELS[:, None] - SWIVELS[None])))                  # (C, C) wrapped
-    change = config.swivel_change_cost * turn ** 2
-    angles = np.zeros(len(elbow))
-    for run in runs:
-        path = _cheapest_path(score[run], change)
-        smooth = gaussian_filter1d(np.unwrap(SWIVELS[path]), config.swivel_sigma, mode="nearest")
-        angles[run] = smooth
-    return _swivelled(shoulder, elbow, wrist, angles)
-
-
-def _cheapest_path(score: np.ndarray, change: np.ndarray) -> np.ndarray:
-    """Viterbi: the candidate per step (T,) minimising sum score[t, c_t] + change[c_t-1, c_t]."""
-    total, back = score[0].copy(), np.zeros(score.shape, int)
-    for t in range(1, len(score)):
-        options = total[:, None] + change                                          # from -> to
-        back[t] = np.argmin(options, axis=0)
-        total = options[back[t], np.arange(score.shape[1])] + score[t]
-    path = np.empty(len(score), int)
-    path[-1] = int(np.argmin(total))
-    for t in range(len(score) - 1, 0, -1):
-        path[t - 1] = back[t, path[t]]
-    return path
-
-
 def _arm_runs(frames: np.ndarray, people: np.ndarray) -> list[np.ndarray]:
     """Index arrays into (frames, people) (M,) of each person's runs of consecutive frames."""
     runs = []
@@ -498,7 +442,7 @@ def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboar
         new_elbow, new_wrist = two_bone_ik(shoulder, goal, upper, lower, pole)
         if obj_pose is not None and moving.any():
             frames, people = np.nonzero(moving)
-            new_elbow = _swivel_clear(shoulder, new_elbow, new_wrist, obj_pose[frames],
+            new_elbow = swivel_clear(shoulder, new_elbow, new_wrist, obj_pose[frames],
                                       [o.spec for o in storyboard.objects], config, _arm_runs(frames, people))
         out[..., ELBOWS[side], :][moving] = new_elbow
         out[..., HANDS[side], :][moving] = new_wrist

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..camera import StoryboardCamera
-from ..geometry.polylines import closest_on_polyline
+from ..geometry.polylines import closest_on_polyline, resample_polyline
 from ..skeleton import FEET, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
@@ -64,6 +64,7 @@ class WarpConfig:
     depth_anchor: float = 1e-3    # a joint's depth change: places a figure no standing foot places
 
 
+PATH_SAMPLES = 200   # points a stroke is resampled to when measuring how far along it a pelvis is
 LIMBS = [JOINT_INDEX[n] for n in ("l_knee", "r_knee", "l_ankle", "r_ankle", "l_elbow", "r_elbow",
                                   "l_wrist", "r_wrist", "spine1", "spine2", "spine3", "neck")]
 
@@ -221,28 +222,49 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig 
 
 def _to_stroke_ends(person: np.ndarray, stroke, span: np.ndarray, keys: list[int],
                     camera: StoryboardCamera, config: WarpConfig) -> np.ndarray:
-    """Offsets (N, 3) of one person (N, 22, 3) that put the pelvis on a stroke's first point at
-    its first frame and on its last point at its last, growing evenly over the span between
-    (and fading out beyond it, and to nothing at the person's keyframes, which are placed). A
-    stroke says where a walk begins and ends, and when: walked only as far as the generated
-    motion went, a 1.8 m walk keyed only at its start ended at 61% of the way (20-23% with
-    other seeds)."""
+    """Offsets (N, 3) of one person (N, 22, 3) that walk the pelvis along a stroke from its first
+    point at its first frame to its last point at its last: the way along the stroke the person
+    has come (`_progress`) gains, between those ends and the person's keyframes in the span
+    (placed already: no change there), what it lacks there, evenly over the frames; beyond the
+    span the ends' offsets hold, easing to none at the nearest keyframes. A stroke says where a
+    walk begins and ends, and when: walked only as far as the generated motion went, a 1.8 m walk
+    keyed only at its start ended at 61% of the way (20-23% with other seeds)."""
     n = len(person)
     if len(span) < 2:
         return np.zeros((n, 3))
-    ends = [int(span[0]), int(span[-1])]
-    pelvis = person[ends, PELVIS]
-    height = pelvis[:, 1] + _grounding_height(person[ends], config.foot_height)
+    pelvis = person[span, PELVIS]
     if stroke.floor is not None:
-        xz = np.asarray(stroke.floor, float)[[0, -1]]
-        targets = np.stack([xz[:, 0], height, xz[:, 1]], -1)
-        off = np.linalg.norm(pelvis[:, [0, 2]] - xz, axis=-1)
-    else:
-        targets = camera.unproject_to_height(np.asarray(stroke.points, float)[[0, -1]], height)
-        off = np.linalg.norm(camera.project(pelvis) - np.asarray(stroke.points, float)[[0, -1]], axis=-1)
-    shift = np.where((off > config.path_tolerance)[:, None], targets - pelvis, 0.0) * (1.0, 0.0, 1.0)
-    full = spread(n, ends, shift, config.falloff)
-    return full - spread(n, keys, full[keys], config.falloff) if keys else full
+        ground = resample_polyline(np.asarray(stroke.floor, float), PATH_SAMPLES)
+    else:   # lifted to the standing pelvis' height, as follow_paths lifts it
+        height = pelvis[:, 1] + _grounding_height(person[span], config.foot_height)
+        ground = camera.unproject_to_height(resample_polyline(np.asarray(stroke.points, float), PATH_SAMPLES),
+                                            float(np.mean(height)))[:, [0, 2]]
+    length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(ground, axis=0), axis=-1))])
+    come = length[_progress(pelvis[:, [0, 2]], ground)]                        # (M,) metres along
+    ends = {0: 0.0, len(span) - 1: length[-1]}
+    anchors = sorted({i for i, f in enumerate(span) if f in keys} | set(ends))
+    lack = np.array([0.0 if span[i] in keys else ends[i] - come[i] for i in anchors])
+    if np.abs(lack).max() <= config.path_tolerance:
+        return np.zeros((n, 3))
+    way = np.clip(np.maximum.accumulate(come + np.interp(np.arange(len(span)), anchors, lack)), 0.0, length[-1])
+    moved = np.stack([np.interp(way, length, ground[:, i]) - np.interp(come, length, ground[:, i]) for i in range(2)], -1)
+    shift = np.stack([moved[:, 0], np.zeros(len(span)), moved[:, 1]], -1)
+    frames = sorted(set(keys) - set(span.tolist())) + span.tolist()
+    values = np.concatenate([np.zeros((len(frames) - len(span), 3)), shift])
+    order = np.argsort(frames)
+    return np.stack([np.interp(np.arange(n), np.asarray(frames)[order], values[order, i]) for i in range(3)], -1)
+
+
+def _progress(points: np.ndarray, dense: np.ndarray) -> np.ndarray:
+    """Index into a densely resampled path on the ground (S, 2) of the point nearest each of
+    points (M, 2) in time order, searched a little behind and further ahead of the last one (a
+    path that loops or doubles back is not jumped across)."""
+    out, at = np.empty(len(points), int), 0
+    for i, p in enumerate(points):
+        lo, hi = max(at - PATH_SAMPLES // 20, 0), min(at + PATH_SAMPLES // 10, len(dense))
+        at = lo + int(np.argmin(np.linalg.norm(dense[lo:hi] - p, axis=-1)))
+        out[i] = at
+    return out
 
 
 def _towards_path(points: np.ndarray, path: np.ndarray, tolerance: float) -> np.ndarray:

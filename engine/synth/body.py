@@ -13,18 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..skeleton import (FEET, HANDS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, REST_OFFSETS, forward_kinematics,
-                        inverse_kinematics)
+from ..skeleton import (ANKLES, ELBOWS, FEET, HANDS, HIPS, JOINT_INDEX, JOINT_NAMES, KNEES, NUM_JOINTS,
+                        REST_OFFSETS, SHOULDERS, forward_kinematics, inverse_kinematics)
 from .gait import FOOT_HEIGHT, Footwork
 from .reach import pitch_matrix, to_local, two_bone_ik, yaw_matrix
 from .trajectory import smoothstep
 
 J = JOINT_INDEX
-HIPS = (J["l_hip"], J["r_hip"])
-KNEES = (J["l_knee"], J["r_knee"])
-ANKLES = (J["l_ankle"], J["r_ankle"])
-SHOULDERS = (J["l_shoulder"], J["r_shoulder"])
-ELBOWS = (J["l_elbow"], J["r_elbow"])
 SIDES = (1.0, -1.0)  # left is +X in the heading frame
 _GROUPS = {"legs": ("knee", "ankle", "foot"), "arms": ("elbow", "wrist"),
            "spine": ("spine1", "spine2", "spine3", "neck", "head")}

@@ -1,0 +1,81 @@
+"""Elbows that keep arms out of the objects: where an arm reaching its grip would pass through
+an object, its elbow swivels about the shoulder-wrist line (which keeps both bone lengths) to
+where it does not, or least does, choosing the angles of a run of frames together so that the
+elbow turns smoothly (reach_contacts calls it).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from ..body import JOINT_RADII
+from ..geometry.rotations import normalize
+from ..objects import ObjectSpec, world_to_local
+from ..skeleton import ELBOWS, HANDS, SHOULDERS
+
+SWIVELS = np.deg2rad(np.arange(-180, 180, 5))  # elbow angles about the shoulder-wrist line tried
+
+
+def arm_penetration(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
+                     specs: list[ObjectSpec]) -> np.ndarray:
+    """Deepest penetration (M, C), 0 where none, of an arm's spheres (upper-arm middle, elbow,
+    forearm middle; engine.metrics' radii) into any object or the ground. shoulder, wrist
+    (M, 1, 3); elbow (M, C, 3) C candidates; obj_pose (M, O, 7). The wrist is left out: it holds
+    on at its grip."""
+    s, e, w = (JOINT_RADII[j] for j in (SHOULDERS[0], ELBOWS[0], HANDS[0]))
+    radii = np.array([(s + e) / 2, e, (e + w) / 2])
+    points = np.stack(np.broadcast_arrays((shoulder + elbow) / 2, elbow, (elbow + wrist) / 2), axis=2)  # (M, C, 3, 3)
+    m, c = elbow.shape[:2]
+    depth = np.maximum(np.max(radii - points[..., 1], axis=-1), 0.0)
+    for o, spec in enumerate(specs):
+        local = world_to_local(points.reshape(m, -1, 3), obj_pose[:, o]).reshape(points.shape)
+        depth = np.maximum(depth, np.max(spec.penetration_local(local, radii), axis=-1))
+    return depth
+
+
+def _swivelled(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Elbows (M, 3) turned about the shoulder-wrist line (which keeps both bone lengths) by
+    angles (M,) or, for candidates, (M, C) radians -> (M, 3) or (M, C, 3)."""
+    axis = normalize(wrist - shoulder)
+    centre = shoulder + np.sum((elbow - shoulder) * axis, -1, keepdims=True) * axis
+    out = elbow - centre
+    if angles.ndim == 2:
+        axis, centre, out = axis[:, None], centre[:, None], out[:, None]
+    cos, sin = np.cos(angles)[..., None], np.sin(angles)[..., None]
+    return centre + cos * out + sin * np.cross(axis, out)
+
+
+def swivel_clear(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
+                  specs: list[ObjectSpec], config, runs: list[np.ndarray]) -> np.ndarray:
+    """Elbows (M, 3) swivelled about the shoulder-wrist line to trade penetration into the objects
+    (obj_pose (M, O, 7)) against turning (config.swivel_cost metres of penetration per radian)
+    and against turning fast (config.swivel_change_cost per squared radian between frames): `runs`
+    are index arrays of the consecutive frames of one arm, along which the angles are chosen
+    together (a per-frame choice flipped elbows to the other side in one frame, by up to 40 cm).
+    shoulder, elbow, wrist (M, 3)."""
+    grid = np.broadcast_to(SWIVELS, (len(elbow), len(SWIVELS)))
+    candidates = _swivelled(shoulder, elbow, wrist, grid)                              # (M, C, 3)
+    depth = arm_penetration(shoulder[:, None], candidates, wrist[:, None], obj_pose, specs)
+    score = depth + config.swivel_cost * np.abs(SWIVELS)
+    turn = np.angle(np.exp(1j * (SWIVELS[:, None] - SWIVELS[None])))                  # (C, C) wrapped
+    change = config.swivel_change_cost * turn ** 2
+    angles = np.zeros(len(elbow))
+    for run in runs:
+        path = _cheapest_path(score[run], change)
+        smooth = gaussian_filter1d(np.unwrap(SWIVELS[path]), config.swivel_sigma, mode="nearest")
+        angles[run] = smooth
+    return _swivelled(shoulder, elbow, wrist, angles)
+
+
+def _cheapest_path(score: np.ndarray, change: np.ndarray) -> np.ndarray:
+    """Viterbi: the candidate per step (T,) minimising sum score[t, c_t] + change[c_t-1, c_t]."""
+    total, back = score[0].copy(), np.zeros(score.shape, int)
+    for t in range(1, len(score)):
+        options = total[:, None] + change                                          # from -> to
+        back[t] = np.argmin(options, axis=0)
+        total = options[back[t], np.arange(score.shape[1])] + score[t]
+    path = np.empty(len(score), int)
+    path[-1] = int(np.argmin(total))
+    for t in range(len(score) - 1, 0, -1):
+        path[t - 1] = back[t, path[t]]
+    return path
