@@ -7,8 +7,8 @@ moves the figure the way an animator's rig would, keeping every bone's drawn len
     pelvis                 the whole figure moves
     wrist, ankle           two-bone IK from the shoulder or hip, the elbow or knee bending the
                            way it bends now; the foot rides on the ankle. A wrist dragged beyond
-                           the arm's reach first leans the chest towards it (by at most
-                           MAX_LEAN, as a spine3 drag would), as a body reaching for something does
+                           the arm's reach first leans the chest towards it (as a spine3 drag
+                           does, by at most MAX_LEAN degrees), as a body reaching for something does
     spine joints           a chest control: the spine bends from the pelvis to put the joint
                            there, all above it moves along without turning (turning its own
                            short bone folded the chest 60 degrees for a 15 cm drag)
@@ -42,7 +42,8 @@ CHAINS = [(PELVIS, [JOINT_INDEX[n] for n in ("spine1", "spine2", "spine3")]),
 BENDS = {j: (root, chain[:i + 1]) for root, chain in CHAINS for i, j in enumerate(chain)}
 CHEST = JOINT_INDEX["spine3"]
 WRISTS = (JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"])
-MAX_LEAN = 0.3   # m the chest may move towards a hand dragged beyond reach (a 35 degree lean)
+MAX_LEAN = 35        # degrees the chest may turn about the pelvis towards a hand dragged beyond reach ...
+LEAN_HEIGHT = 0.85   # ... keeping this share of its distance from the pelvis
 
 
 def _subtree(joint: int) -> list[int]:
@@ -92,23 +93,29 @@ def _reach(points: np.ndarray, mask: np.ndarray, end: int, target: np.ndarray) -
 
 def _lean_towards(points: np.ndarray, mask: np.ndarray, wrist: int, target: np.ndarray,
                   pinned: tuple[int, ...]) -> np.ndarray:
-    """points (22, 2) with the chest bent towards target (2,) until the wrist's arm reaches it,
-    the chest moving at most MAX_LEAN; unchanged when the arm reaches already, or the spine is
-    unplaced or pinned."""
+    """points (22, 2) with the chest bent towards target (2,) (as a spine3 drag bends it) until the
+    wrist's arm reaches it, the chest turning at most MAX_LEAN degrees about the pelvis and
+    coming no closer to it than LEAN_HEIGHT of its distance (a reach for the floor folded the
+    spine in two); unchanged when the arm reaches already, or the upper body is unplaced or
+    pinned (a pinned wrist re-reaches its place after)."""
     shoulder, elbow = LIMB_ENDS[wrist]
     root, chain = BENDS[CHEST]
-    if not mask[[root, *chain, shoulder, elbow, wrist]].all() or set(chain) & set(pinned):
+    upper = SUBTREE[chain[0]]
+    if not mask[[root, *upper]].all() or set(pinned) & (set(upper) - set(WRISTS)):
         return points
     arm = np.linalg.norm(points[elbow] - points[shoulder]) + np.linalg.norm(points[wrist] - points[elbow])
+    upright = points[CHEST] - points[root]
+    height = float(np.linalg.norm(upright))
     out = points
-    for _ in range(3):   # the chest moves on its spine's sphere about the pelvis: a few passes
+    for _ in range(3):   # the chest moves on its spine's reach about the pelvis: a few passes
         gap = target - out[shoulder]
         short = np.linalg.norm(gap) - arm
         if short < 1e-6:
             break
-        lean = out[CHEST] + short * _unit(gap) - points[CHEST]
-        lean *= min(1.0, MAX_LEAN / max(float(np.linalg.norm(lean)), 1e-12))
-        out = _bend_chain(points, root, chain, points[CHEST] + lean)
+        goal = out[CHEST] + short * _unit(gap) - points[root]
+        turn = np.clip(_angle(goal) - _angle(upright), -np.deg2rad(MAX_LEAN), np.deg2rad(MAX_LEAN))
+        reach = np.clip(np.linalg.norm(goal), LEAN_HEIGHT * height, height)
+        out = _bend_chain(points, root, chain, points[root] + reach * _unit(_rotate(upright, np.zeros(2), turn)))
     return out
 
 

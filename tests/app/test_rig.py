@@ -9,7 +9,7 @@ from app import commands as cmd
 from app.canvas import SketchCanvas
 from app.document import Document
 from engine.poses import standing_pose_2d
-from engine.rig import MAX_LEAN, drag_pose
+from engine.rig import LEAN_HEIGHT, MAX_LEAN, drag_pose
 from engine.skeleton import JOINT_INDEX as J
 from engine.skeleton import PARENTS
 
@@ -87,12 +87,17 @@ def test_a_wrist_dragged_beyond_reach_leans_the_chest_to_get_there(qtbot, posed)
     assert np.linalg.norm(after[J["r_wrist"]] - target) < 1.5 / canvas.zoom
     legs = [J[n] for n in ("pelvis", "l_hip", "r_hip", "l_knee", "r_knee", "l_ankle", "r_ankle")]
     np.testing.assert_allclose(after[legs], before[legs])
-    lean = after[J["spine3"]] - before[J["spine3"]]
-    assert 0.05 < -lean[0] <= MAX_LEAN + 1e-9                     # towards it, at most MAX_LEAN
+    assert after[J["spine3"]][0] < before[J["spine3"]][0] - 0.05    # the chest went towards it
     np.testing.assert_allclose(bones(after), bones(before), atol=1e-9)
-    far = before[J["r_shoulder"]] + (-2.0, 0.0)                  # out of any reach: a lean, no more
-    lean = drag_pose(before, np.ones(len(before), bool), J["r_wrist"], far)[J["spine3"]] - before[J["spine3"]]
-    assert 0.1 < np.linalg.norm(lean) <= MAX_LEAN + 1e-9
+    placed = np.ones(len(before), bool)
+    chest = lambda p: p[J["spine3"]] - p[J["pelvis"]]
+    for far in ((-2.0, 0.0), (0.0, -0.9)):                    # out of any reach: a lean, no fold
+        leaned = drag_pose(before, placed, J["r_wrist"], before[J["r_shoulder"]] + far)
+        turn = np.degrees(np.arccos(chest(leaned) @ chest(before) / np.linalg.norm(chest(leaned)) / np.linalg.norm(chest(before))))
+        assert 5 < turn <= MAX_LEAN + 1e-6
+        assert np.linalg.norm(chest(leaned)) >= LEAN_HEIGHT * np.linalg.norm(chest(before)) - 1e-9
+    pinned = drag_pose(before, placed, J["r_wrist"], target, pinned=(J["head"],))   # a pinned head: no lean
+    np.testing.assert_allclose(pinned[J["spine3"]], before[J["spine3"]])
 
 
 def test_a_middle_joint_turns_its_limb_and_the_pelvis_carries_the_figure(qtbot, posed):
