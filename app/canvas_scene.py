@@ -18,7 +18,7 @@ HAND_NAMES = {"left": "l_wrist", "right": "r_wrist"}
 
 
 class CanvasScene:
-    """Mixed into SketchCanvas: needs self._doc, self._gesture, self._hit() and self.to_px."""
+    """Mixed into SketchCanvas: needs self._doc, self._gesture, self._hit() and self._posed()."""
 
     # ---- what is on screen at the playhead -----------------------------------------------------
     def _keypose_points(self, agent: str, frame: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -80,7 +80,7 @@ class CanvasScene:
         found = self._object_outline(object_id, frame)
         o = sb.object_index(object_id)
         if not (found and found[2]) and clip is not None and clip.obj_anchors is not None \
-                and o < clip.obj_anchors.shape[1] and anchor < clip.obj_anchors.shape[2]:
+                and clip.obj_anchors.shape[1] == len(sb.objects) and anchor < clip.obj_anchors.shape[2]:
             return sb.camera.project(clip.obj_anchors[min(frame, clip.num_frames - 1), o, anchor])
         anchors = self._anchors_2d(object_id, found[1]) if found else None
         return anchors[anchor] if anchors is not None and anchor < len(anchors) else None

@@ -156,7 +156,8 @@ class DeleteKeypose(StoryboardCommand):
 
 class RetimeKeyframe(StoryboardCommand):
     """Move the keys of one timeline track (an agent's keyposes or an object's keys) from one
-    frame to another; a key already at the target frame is replaced."""
+    frame to another; a key already at the target frame is replaced (the timeline never asks:
+    it stops a dragged key at its neighbours)."""
     touches = ("keyposes", "object_keys")
 
     def __init__(self, document, kind: str, owner: str, old: int, new: int):

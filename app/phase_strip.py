@@ -59,8 +59,7 @@ class PhaseStrip(pg.PlotWidget):
         document.frameChanged.connect(self._playhead.setValue)
         document.storyboardChanged.connect(self._on_storyboard)
         document.resultChanged.connect(self.show_document_phase)
-        self._on_storyboard()
-        self.show_document_phase()
+        self._on_storyboard()              # shows the document's phase too
 
     def set_phase(self, phase: np.ndarray | None) -> None:
         """Show an occupancy (N, 3), rows summing to 1; None shows an empty strip, and so does a
@@ -77,7 +76,7 @@ class PhaseStrip(pg.PlotWidget):
             phase = np.clip(np.asarray(phase, float), 0, None)
             stacked = np.vstack([np.zeros(len(phase)), np.cumsum(phase, axis=1).T])
         frames = stacked.shape[1]
-        x = np.unique(np.append(np.arange(0, frames, -(-frames // MAX_POINTS)), frames - 1)) if frames else np.arange(0)
+        x = np.unique(np.append(np.arange(0, frames, -(-frames // (MAX_POINTS - 1))), frames - 1)) if frames else np.arange(0)
         for curve, y in zip(self._curves, stacked):
             curve.setData(x.astype(float), y[x])
         self.empty_hint.setVisible(phase is None)

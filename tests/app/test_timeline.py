@@ -85,7 +85,7 @@ def test_phase_strip_shows_stacked_occupancy_and_scrubs(qtbot, doc):
     long = np.repeat(phase, 240, axis=0)                     # 28800 frames: a 2-minute clip at 240 fps
     strip.set_phase(long)
     x, top = strip._curves[1].getData()
-    assert len(x) <= MAX_POINTS + 1 and x[0] == 0 and x[-1] == len(long) - 1
+    assert len(x) <= MAX_POINTS and x[0] == 0 and x[-1] == len(long) - 1
     assert top == pytest.approx(long[x.astype(int), 0])
 
 
