@@ -113,7 +113,8 @@ def _lean_towards(points: np.ndarray, mask: np.ndarray, wrist: int, target: np.n
         if short < 1e-6:
             break
         goal = out[CHEST] + short * _unit(gap) - points[root]
-        turn = np.clip(_angle(goal) - _angle(upright), -np.deg2rad(MAX_LEAN), np.deg2rad(MAX_LEAN))
+        turn = (_angle(goal) - _angle(upright) + np.pi) % (2 * np.pi) - np.pi        # the shorter way round
+        turn = np.clip(turn, -np.deg2rad(MAX_LEAN), np.deg2rad(MAX_LEAN))
         reach = np.clip(np.linalg.norm(goal), LEAN_HEIGHT * height, height)
         out = _bend_chain(points, root, chain, points[root] + reach * _unit(_rotate(upright, np.zeros(2), turn)))
     return out
