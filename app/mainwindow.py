@@ -136,7 +136,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.act_export_object_path = a("Export Object Path (CSV)\u2026", self.export_object_path,
                                         tip="Each object's position, rotation and grip points per frame")
         self.act_export_png = a("Export 3D View (PNG)\u2026", self.export_png)
-        self.act_import_bvh = a("Import Reference Motion (BVH)\u2026", self.import_bvh,
+        self.act_import_bvh = a("Import Reference Motion (BVH)\u2026", lambda: self.import_bvh(),   # not triggered's bool
                                 tip="Show real motion under the sketch (one BVH file per person)")
         self.act_trace = a("Trace Storyboard from Motion", self.trace_storyboard,
                            tip="Start a new storyboard drawn from the reference (or generated) motion")

@@ -54,7 +54,7 @@ def cmd_import_bvh(args) -> int:
         raise UserError(f"--fps must be between 1 and 240, got {args.fps:g}")
     check_output_path(args.output)
     try:
-        clip, report = import_bvh(args.files, ImportConfig(fps=args.fps), load_joint_map(args.map))
+        clip, report = import_bvh(args.files, ImportConfig(fps=args.fps), load_joint_map(args.map) if args.map else None)
     except (BvhError, RetargetError) as e:
         raise UserError(str(e)) from None
     clip.save(args.output)
@@ -192,8 +192,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("files", nargs="+", metavar="BVH", help="lead BVH, then optionally the follow's")
     s.add_argument("-o", "--output", required=True, metavar="CLIP.npz")
     s.add_argument("--fps", type=float, default=20.0, help="output frame rate (default 20)")
-    s.add_argument("--map", default="cmu_salsa",
-                   help="joint map: built-in cmu_salsa or smpl22, or a JSON file (default cmu_salsa)")
+    s.add_argument("--map", default=None,
+                   help="joint map: built-in cmu_salsa or smpl22, or a JSON file (default: the built-in "
+                        "whose joints the file has)")
     s.set_defaults(func=cmd_import_bvh)
 
     s = sub.add_parser("synth", help="write procedural two-person scenes as motion clips")

@@ -20,7 +20,7 @@ from ..geometry.rotations import sixd_to_matrix
 from ..skeleton import FEET, JOINT_INDEX, bone_lengths, forward_kinematics
 from .bvh import BvhMotion, read_bvh
 from .resample import resample_clip
-from .retarget import CMU_SALSA_MAP, JointMap, RetargetError, body_scale, check_orientation, estimate_floor
+from .retarget import BUILTIN_MAPS, CMU_SALSA_MAP, JointMap, RetargetError, body_scale, check_orientation, estimate_floor
 
 
 @dataclass
@@ -127,13 +127,18 @@ def bvh_people(motions: list[BvhMotion], joint_map: JointMap, names: list[str],
 
 
 def import_bvh(paths: list[str | Path], cfg: ImportConfig | None = None,
-               joint_map: JointMap = CMU_SALSA_MAP) -> tuple[MotionClip, ImportReport]:
-    """One BVH file per person (a synchronized take sharing one world frame) -> (clip, report)."""
+               joint_map: JointMap | None = None) -> tuple[MotionClip, ImportReport]:
+    """One BVH file per person (a synchronized take sharing one world frame) -> (clip, report).
+    Without a joint map, the built-in one whose nodes the first file has (our own export's, or
+    CMU's; else CMU's, and the error names the nodes it lacks)."""
     cfg = cfg or ImportConfig()
     if not paths:
         raise RetargetError("import_bvh needs at least one BVH file")
     names = [str(p) for p in paths]
+    motions = [read_bvh(p) for p in paths]
+    if joint_map is None:
+        joint_map = next((m for m in BUILTIN_MAPS.values() if m.fits(motions[0].names)), CMU_SALSA_MAP)
     # Resampled in the BVH's own joint-angle domain, so the people arrive at cfg.fps already.
-    joints, source_fps = bvh_people([read_bvh(p) for p in paths], joint_map, names, cfg.fps)
+    joints, source_fps = bvh_people(motions, joint_map, names, cfg.fps)
     scenario = "bvh:" + "+".join(Path(p).stem for p in paths)
     return people_to_clip(joints, cfg, cfg.fps, source_fps, scenario=scenario)

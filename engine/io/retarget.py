@@ -80,6 +80,10 @@ class JointMap:
             raise RetargetError(f"{path}: not valid JSON ({e})") from None
         return cls.from_dict(d)
 
+    def fits(self, node_names: list[str]) -> bool:
+        """Whether a file with these nodes has every node the map reads."""
+        return {n for nodes in self.sources.values() for n in nodes} <= set(node_names)
+
     def apply(self, node_names: list[str], positions: np.ndarray) -> np.ndarray:
         """Source node positions (F, J_src, 3) -> our joints (F, 22, 3), rotated into our axes."""
         index = {n: i for i, n in enumerate(node_names)}

@@ -58,6 +58,16 @@ def test_bvh_export_writes_one_file_per_agent(generated, save_dialog, tmp_path, 
     assert "take_A.bvh" in generated.statusBar().currentMessage()
 
 
+def test_the_exported_bvh_imports_back_from_the_menu(generated, save_dialog, tmp_path, dialogs, monkeypatch):
+    save_dialog.path = tmp_path / "take.bvh"
+    menu_action(generated, "Export Motion (BVH)").trigger()
+    files = [str(tmp_path / f"take_{agent}.bvh") for agent in ("A", "B")]
+    monkeypatch.setattr(QFileDialog, "getOpenFileNames", lambda *args, **kwargs: (files, ""))
+    menu_action(generated, "Import Reference Motion (BVH)\u2026").trigger()   # a file dialog, then the files
+    assert dialogs.errors == [] and generated.doc.reference is not None
+    assert generated.doc.reference.num_humans == 2 and generated.doc.reference.num_frames == generated.doc.clip.num_frames
+
+
 def test_gltf_export_writes_a_glb(generated, save_dialog, tmp_path, dialogs):
     save_dialog.path = tmp_path / "scene.glb"
     action = menu_action(generated, "Export Scene (glTF)")
