@@ -210,10 +210,9 @@ class PropertiesPanel(QWidget):
         self.contacts.setCurrentRow(min(row, self.contacts.count() - 1))
         self.delete_contact.setEnabled(self.contacts.currentRow() >= 0)
         s = doc.settings
-        self.seed.setValue(s.seed)
-        self.steps.setValue(s.steps)
-        self.cfg.setValue(s.cfg)
-        self.text_cfg.setValue(s.text_cfg)
+        for spin, value in ((self.seed, s.seed), (self.steps, s.steps), (self.cfg, s.cfg), (self.text_cfg, s.text_cfg)):
+            if spin.value() != value:     # the same value set again retypes the field under the cursor:
+                spin.setValue(value)      # typing "2.5" became 2.0, and "0.75" turned guidance off
         self.use_energy.setChecked(s.use_energy)
         self.use_ctmc.setChecked(s.use_ctmc)
         self.steady.setChecked(s.steady)

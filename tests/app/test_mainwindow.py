@@ -297,6 +297,16 @@ def test_the_steady_checkbox_reaches_the_sampler(make_window, monkeypatch):
     assert [c.guidance_max_rate for c in seen] == [STEADY_GUIDANCE_RATE, None]
 
 
+def test_decimals_typed_into_the_generation_settings_stay(qtbot, window):
+    panel = window.properties
+    for spin, typed, value in ((panel.cfg, "2.5", 2.5), (panel.cfg, "0.75", 0.75), (panel.text_cfg, "4.5", 4.5)):
+        spin.setFocus()
+        spin.selectAll()
+        qtbot.keyClicks(spin, typed)                    # every keystroke applies the value it makes
+        assert spin.value() == pytest.approx(value)     # (two decimals for guidance, one for text)
+    assert window.doc.settings.cfg == pytest.approx(0.75) and window.doc.settings.text_cfg == pytest.approx(4.5)
+
+
 def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window, dialogs):
     """Typing a frame rate keeps every key at its time; a shorter length drops what lies past it,
     once the artist has said yes to the question that says what goes."""
