@@ -428,6 +428,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
     def generate(self, after_drag: bool = False) -> None:
         if self.session.running and not self.session.settings.preview:   # a preview gives way
             return
+        self.properties.commit_text()    # typed, not yet confirmed with Enter
         settings = replace(self.generation_settings(), after_drag=after_drag)
         problem = self.session.start(settings)
         if problem is not None:

@@ -264,6 +264,11 @@ class PropertiesPanel(QWidget):
             return
         self._doc.undo_stack.push(cmd.SetTiming(self._doc, sb.fps, length))
 
+    def commit_text(self) -> None:
+        """The Text field's words into the storyboard (as Enter or leaving the field would): a
+        generation started while the field has the focus reads them."""
+        self._apply_text()
+
     def _apply_text(self):
         text = " ".join(self.text.text().split())
         self.text.setModified(False)

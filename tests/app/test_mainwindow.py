@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch  # noqa: F401  as main() does: loaded before the window, so no generation pays for it
 from PySide6.QtCore import QElapsedTimer, Qt, QTimer
-from PySide6.QtWidgets import QMessageBox, QToolBar
+from PySide6.QtWidgets import QMessageBox, QToolBar, QWidget
 
 from app import commands as cmd
 from app.autosave import Recovery
@@ -295,6 +295,19 @@ def test_the_steady_checkbox_reaches_the_sampler(make_window, monkeypatch):
         with pytest.raises(StopIteration):
             next(stream)
     assert [c.guidance_max_rate for c in seen] == [STEADY_GUIDANCE_RATE, None]
+
+
+def test_text_typed_without_enter_is_what_the_generation_reads(qtbot, make_window):
+    sampler = FakeSampler()
+    window = make_window(generate=sampler)
+    load_sample(window)
+    panel = window.properties
+    panel.text.setFocus()
+    qtbot.keyClicks(panel.text, "two people wave")
+    button = window.findChild(QWidget, "generate")
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
+        qtbot.mouseClick(button, Qt.LeftButton)                       # the field keeps the focus
+    assert window.doc.storyboard.text == "two people wave" and window.session.storyboard.text == "two people wave"
 
 
 def test_decimals_typed_into_the_generation_settings_stay(qtbot, window):
