@@ -268,9 +268,14 @@ class FloorPlan(QWidget):
             else:
                 labels.append([x, y, k.agent, [k.frame]])
         p.setPen(QColor("#3a3a3a"))
-        for i, (x, y, agent, frames) in enumerate(labels):   # another person's label nearby: the next line
-            below = sum(np.hypot(x - lab[0], y - lab[1]) < LABEL_PX for lab in labels[:i])
-            p.drawText(QPointF(x + DISC_R + 2, y - 2 + LABEL_PX * below), f"{agent} {', '.join(map(str, frames))}")
+        placed: list[QRectF] = []
+        for x, y, agent, frames in labels:   # a label that would cover another goes a line lower
+            text = f"{agent} {', '.join(map(str, frames))}"
+            rect = QRectF(p.fontMetrics().boundingRect(text)).translated(x + DISC_R + 2, y - 2)
+            while any(rect.intersects(other) for other in placed):
+                rect.translate(0, LABEL_PX)
+            placed.append(rect)
+            p.drawText(rect.bottomLeft() - QPointF(0, p.fontMetrics().descent()), text)
         if self._drag and self._drag[0] == "walk" and len(self._drag[2]) > 1:
             p.setPen(QPen(colors.get(doc.selection.agent, QColor("#333")), 2))
             p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._drag[2]]))
