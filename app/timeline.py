@@ -39,6 +39,19 @@ class Track:
     color: str
 
 
+RULER_STEPS = (5,) + tuple(m * 10 ** e for e in range(1, 7) for m in (1, 2, 5))   # frames between ruler ticks
+
+
+def ruler_steps(length: int, width: float) -> tuple[int, int]:
+    """Frames between the ruler's ticks and between its labels for a clip drawn `width` px wide:
+    ticks at least 5 px apart, labels at least 40 px (a 240 fps x 2 min clip's labels every 20
+    frames overprinted into a grey band)."""
+    per_frame = width / max(length, 1)
+    tick = next((s for s in RULER_STEPS if s * per_frame >= 5), RULER_STEPS[-1])
+    every = next((s for s in RULER_STEPS if s >= 10 and s * per_frame >= 40 and s % tick == 0), RULER_STEPS[-1])
+    return tick, every
+
+
 def frame_to_x(frame: float, length: int, width: int) -> float:
     return LABEL_W + frame * (width - LABEL_W - MARGIN) / max(length - 1, 1)
 
@@ -173,10 +186,9 @@ class Timeline(QWidget):
         p.fillRect(self.rect(), QColor("#fbfaf7"))
         sb = self._doc.storyboard
         w = self.width()
-        # Ruler: a tick every 5 frames, a label every 20 (or 10 when wide).
-        every = 10 if w / max(sb.length, 1) > 6 else 20
+        tick, every = ruler_steps(sb.length, w)
         p.setPen(QColor("#8a857a"))
-        for f in range(0, sb.length, 5):
+        for f in range(0, sb.length, tick):
             x = self._x(f)
             labelled = f % every == 0
             p.drawLine(QPointF(x, RULER_H - (8 if labelled else 4)), QPointF(x, RULER_H))

@@ -8,7 +8,7 @@ from PySide6.QtCore import QPoint, Qt
 from app import commands as cmd
 from app.document import Document
 from app.phase_strip import MAX_POINTS, PhaseStrip
-from app.timeline import RULER_H, ROW_H, Timeline, frame_to_x
+from app.timeline import RULER_H, ROW_H, Timeline, frame_to_x, ruler_steps
 
 from .fakes import phase_schedule, sample_storyboard
 
@@ -133,3 +133,11 @@ def test_a_keys_hold_and_ease_are_set_in_properties_and_drawn_on_the_timeline(qt
     doc.undo_stack.undo()
     key = cmd.find_keypose(doc.storyboard, "A", 60)
     assert (key.hold, key.ease_in) == (0, False) and props.hold.value() == 0
+
+
+@pytest.mark.parametrize("length, width", [(120, 900), (60, 1200), (2400, 700), (28800, 900)])
+def test_the_ruler_keeps_its_labels_apart_on_any_clip(length, width):
+    tick, every = ruler_steps(length, width)
+    assert every % tick == 0 and every * width / length >= 40 and tick * width / length >= 5
+    if length == 120:
+        assert (tick, every) == (5, 10)                                # a 6 s clip as it always was
