@@ -12,7 +12,7 @@ import numpy as np
 from PySide6.QtGui import QUndoCommand
 
 from engine.objects import DEFAULT_SIZES, ObjectSpec
-from engine.skeleton import MIRROR
+from engine.skeleton import FEET, MIRROR
 from engine.storyboard import SPANS, Contact, Keypose, ObjectKey, SceneObject, Storyboard
 
 
@@ -126,7 +126,9 @@ class DeleteKeyposeJoint(StoryboardCommand):
 
 
 class MirrorKeypose(StoryboardCommand):
-    """Flip a keypose left-right about its pelvis (left joints become right joints)."""
+    """Flip a keypose left-right (left joints become right joints) about where it stands: the
+    middle of its feet (about the pelvis, a figure leaning over stepped 10 cm aside), else its
+    pelvis."""
     touches = ("keyposes",)
 
     def __init__(self, document, agent: str, frame: int):
@@ -135,7 +137,8 @@ class MirrorKeypose(StoryboardCommand):
 
     def apply(self, sb):
         k = find_keypose(sb, self._agent, self._frame)
-        centre = k.points[0, 0] if k.mask[0] else k.points[k.mask, 0].mean()
+        feet = [j for j in FEET if k.mask[j]]
+        centre = k.points[feet, 0].mean() if feet else k.points[0, 0] if k.mask[0] else k.points[k.mask, 0].mean()
         points, mask = k.points[list(MIRROR)].copy(), k.mask[list(MIRROR)].copy()
         points[:, 0] = 2 * centre - points[:, 0]
         k.points, k.mask = points, mask

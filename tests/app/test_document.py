@@ -70,10 +70,12 @@ def test_mirror_swaps_sides_and_reflects(doc):
     before = k.points.copy()
     doc.undo_stack.push(cmd.MirrorKeypose(doc, "A", 60))
     after = cmd.find_keypose(doc.storyboard, "A", 60).points
-    from engine.skeleton import JOINT_INDEX
+    from engine.skeleton import FEET, JOINT_INDEX
     l, r = JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"]
+    stands = before[list(FEET), 0].mean()                      # about where it stands: its feet
     assert after[l][1] == pytest.approx(before[r][1])
-    assert after[l][0] == pytest.approx(2 * before[0][0] - before[r][0])
+    assert after[l][0] == pytest.approx(2 * stands - before[r][0])
+    assert after[list(FEET), 0].mean() == pytest.approx(stands)
 
 
 def test_signals_fire_only_on_change(doc):
