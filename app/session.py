@@ -34,8 +34,9 @@ from .worker import GenerationRunner
 # A preview request newer than the running preview waits for it while the drag goes on (cancelled
 # at every request, a preview that takes 0.1-0.2 s never finished under a pointer moving every
 # 16 or 50 ms); once requests stop (the pointer rests: no request for 2.5 times the recent gap
-# between them, within SETTLE_MS), a running preview less than half done gives way to the newest.
-SETTLE_MS = (40, 200)
+# between them, within SETTLE_MS: the window stalls 50 ms drawing a step), a running preview less
+# than half done gives way to the newest.
+SETTLE_MS = (80, 250)
 
 
 class GenerationSession(QObject):
