@@ -11,7 +11,7 @@ import copy
 import numpy as np
 from PySide6.QtGui import QUndoCommand
 
-from engine.objects import DEFAULT_SIZES, ObjectSpec
+from engine.objects import ObjectSpec, drawn_size
 from engine.skeleton import FEET, MIRROR
 from engine.storyboard import SPANS, Contact, Keypose, ObjectKey, SceneObject, Storyboard
 
@@ -215,7 +215,8 @@ class EraseStroke(StoryboardCommand):
 
 # ---- objects -------------------------------------------------------------------------------------
 class SetObjectKey(StoryboardCommand):
-    """Set the silhouette outline (L, 2) of an object at a frame; creates the object if new."""
+    """Set the silhouette outline (L, 2) of an object at a frame; creates the object if new, as
+    large as it is drawn (engine.objects.drawn_size; the size fields change it after)."""
     touches = ("objects", "object_keys")
 
     def __init__(self, document, object_id: str, frame: int, outline: np.ndarray, kind: str = "box"):
@@ -224,7 +225,7 @@ class SetObjectKey(StoryboardCommand):
 
     def apply(self, sb):
         if self._object not in [o.id for o in sb.objects]:
-            sb.objects.append(SceneObject(self._object, ObjectSpec(self._kind, DEFAULT_SIZES[self._kind])))
+            sb.objects.append(SceneObject(self._object, ObjectSpec(self._kind, drawn_size(self._kind, self._outline, sb.camera))))
         sb.object_keys = [k for k in sb.object_keys if not (k.object == self._object and k.frame == self._frame)]
         sb.object_keys.append(ObjectKey(self._object, self._frame, self._outline.copy()))
 

@@ -15,6 +15,7 @@ from .geometry.rotations import quat_to_matrix
 OBJECT_TYPES = ("box", "table", "canister")
 DEFAULT_SIZES = {"box": (0.45, 0.35, 0.35), "table": (1.2, 0.74, 0.7), "canister": (0.3, 0.5, 0.3)}
 TABLE_TOP = 0.05  # table-top thickness in metres
+SIZE_RANGE = (0.1, 3.0)  # m: the smallest and largest side a drawn object gets
 TABLE_LEG = 0.05  # square leg width
 
 
@@ -100,6 +101,19 @@ def _box_sdf(q: np.ndarray, half) -> np.ndarray:
 GRIP_SIGNS = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)  # (K=4, 2): sx, sz
 PALM = 0.02  # m from the surface to the wrist joint of a hand flat on it
 NUM_ANCHORS = len(GRIP_SIGNS)
+
+
+def drawn_size(kind: str, outline: np.ndarray, camera) -> tuple[float, float, float]:
+    """The size (w, h, d) of an object drawn as `outline` (L, 2) through `camera` (a
+    StoryboardCamera): the type's default size scaled so that its upright silhouette (facing +Z)
+    is as wide and as tall as the drawing, width and depth together, each within SIZE_RANGE."""
+    w, h, d = DEFAULT_SIZES[kind]
+    corners = np.array([[sx * w / 2, y, sz * d / 2] for sx in (-1, 1) for y in (0.0, h) for sz in (-1, 1)])
+    seen = np.ptp(camera.project(corners), axis=0)                            # (2,) default's silhouette
+    scale = np.ptp(np.asarray(outline, float), axis=0) / np.maximum(seen, 1e-9)   # (2,) across, up
+    across = float(np.clip(scale[0], SIZE_RANGE[0] / min(w, d), SIZE_RANGE[1] / max(w, d)))
+    up = float(np.clip(scale[1], SIZE_RANGE[0] / h, SIZE_RANGE[1] / h))
+    return (w * across, h * up, d * across)
 
 
 def default_anchors(kind: str, size: tuple[float, float, float]) -> np.ndarray:
