@@ -147,10 +147,13 @@ class Timeline(QWidget):
             self.update()
 
     def _between_neighbours(self, track: Track, old: int, frame: int) -> int:
-        """frame, kept between the keys either side of the dragged one on its track: a key does
-        not pass over or replace another (dragged past the timeline's end, the last one went)."""
+        """frame, kept between the keys either side of the dragged one on its track and past the
+        hold of the one before: a key does not pass over or replace another (dragged past the
+        timeline's end, the last one went), nor land inside a held pose."""
         frames = self.key_frames(track)
-        before = max((f for f in frames if f < old), default=-1)
+        held = {k.frame: k.hold for k in self._doc.storyboard.keyposes if k.agent == track.owner} \
+            if track.kind == "agent" else {}
+        before = max((f + held.get(f, 0) for f in frames if f < old), default=-1)
         after = min((f for f in frames if f > old), default=self._doc.storyboard.length)
         return int(np.clip(frame, before + 1, after - 1))
 

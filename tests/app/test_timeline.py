@@ -62,6 +62,11 @@ def test_a_marker_stops_at_its_neighbours_and_replaces_none(qtbot, timeline, doc
     qtbot.mousePress(timeline, Qt.LeftButton, pos=at(timeline, 118, row=1))
     qtbot.mouseRelease(timeline, Qt.LeftButton, pos=at(timeline, 0, row=1))
     assert sorted(k.frame for k in doc.storyboard.keyposes if k.agent == "B") == [0, 1, 119]
+    cmd.find_keypose(doc.storyboard, "B", 0).hold = 25            # B holds its first pose to frame 25
+    qtbot.mousePress(timeline, Qt.LeftButton, pos=at(timeline, 1, row=1))
+    qtbot.mouseMove(timeline, at(timeline, 10, row=1))
+    qtbot.mouseRelease(timeline, Qt.LeftButton, pos=at(timeline, 10, row=1))
+    assert sorted(k.frame for k in doc.storyboard.keyposes if k.agent == "B") == [0, 26, 119]   # not inside the hold
 
 
 def test_double_click_adds_a_copy_of_the_previous_keypose(qtbot, timeline, doc):
