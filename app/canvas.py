@@ -282,7 +282,7 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
     def _posed(self, g: _Gesture) -> np.ndarray:
         """The keypose's points (22, 2) with joint drag g applied by the rig."""
         points, mask = g.pose
-        pinned = tuple(JOINT_INDEX[j] for j in self._doc.tool_options.pinned)
+        pinned = tuple(JOINT_INDEX[j] for j in self._doc.pinned_joints(g.agent))
         return drag_pose(points, mask, g.joint, g.points[-1], g.mode, pinned)
 
     def _finish_joint(self, g: _Gesture):

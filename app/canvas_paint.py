@@ -200,7 +200,7 @@ class CanvasPainting:
                 p.setPen(QPen(color, 2.2))
                 p.setBrush(Qt.NoBrush)
                 p.drawEllipse(QPointF(*px[JOINT_INDEX["head"]]), 0.1 * self.zoom, 0.1 * self.zoom)
-            pinned = self._doc.tool_options.pinned
+            pinned = self._doc.pinned_joints(agent.id)
             for j in np.flatnonzero(mask):
                 chosen = active and JOINT_NAMES[j] == sel.joint
                 p.setPen(QPen(INK if chosen else color.darker(140), 1.2))

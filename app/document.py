@@ -18,6 +18,7 @@ from PySide6.QtGui import QUndoStack
 
 from engine.camera import StoryboardCamera
 from engine.clip import MotionClip
+from engine.skeleton import JOINT_NAMES
 from engine.storyboard import AGENT_COLORS, Agent, Storyboard
 from engine.takes import MAX_TAKES, Take
 
@@ -37,7 +38,8 @@ def new_storyboard() -> Storyboard:
 class ToolOptions:
     """How the tools draw; the canvas reads them, the properties panel sets them."""
     object_shape: str = "rectangle"   # the object tool drags a "rectangle" or draws a "lasso"
-    pinned: tuple[str, ...] = ()      # joints that stay put while a pose is dragged (engine.rig)
+    pinned: tuple[tuple[str, str], ...] = ()   # (agent, joint) pairs that stay put while that agent's
+                                                # pose is dragged (engine.rig); a document's own
 
 
 OBJECT_SHAPES = ("rectangle", "lasso")
@@ -98,6 +100,7 @@ class Document(QObject):
         self.clips, self.variation, self.phase, self._result_source = [], 0, None, None
         self.takes, self.take_index = [], -1
         self._unsaved_without_edits = dirty
+        self.tool_options = replace(self.tool_options, pinned=())   # pins are the old document's
         for signal in (self.storyboardChanged, self.selectionChanged, self.spanChanged,
                        self.resultChanged, self.pathChanged):
             signal.emit()
@@ -148,10 +151,16 @@ class Document(QObject):
             self.tool_options = new
             self.toolOptionsChanged.emit()
 
-    def toggle_pin(self, joint: str) -> None:
-        """Pin `joint` (a JOINT_NAMES entry) for posing, or unpin it."""
-        pinned = self.tool_options.pinned
-        self.set_tool_options(pinned=tuple(j for j in pinned if j != joint) if joint in pinned else pinned + (joint,))
+    def toggle_pin(self, agent: str, joint: str) -> None:
+        """Pin `agent`'s `joint` for posing, or unpin it; nothing for what is no joint (an object
+        path: pinned, it stopped every drag)."""
+        if joint not in JOINT_NAMES:
+            return
+        pin, pinned = (agent, joint), self.tool_options.pinned
+        self.set_tool_options(pinned=tuple(p for p in pinned if p != pin) if pin in pinned else pinned + (pin,))
+
+    def pinned_joints(self, agent: str) -> tuple[str, ...]:
+        return tuple(joint for who, joint in self.tool_options.pinned if who == agent)
 
     def set_frame(self, frame: int) -> None:
         frame = int(np.clip(frame, 0, self.storyboard.length - 1))

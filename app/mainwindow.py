@@ -159,7 +159,8 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
                             tip="Flip the selected agent's keypose at the playhead left-right")
         self.act_delete_key = a("Delete Keypose", self.delete_keypose, QKeySequence.Delete,
                                 tip="Delete the selected agent's keypose at the playhead")
-        self.act_pin = a("Pin Joint", lambda: self.doc.toggle_pin(self.doc.selection.joint), QKeySequence("P"),
+        self.act_pin = a("Pin Joint", lambda: self.doc.toggle_pin(self.doc.selection.agent, self.doc.selection.joint),
+                         QKeySequence("P"),
                          tip="Pin the selected joint: it stays put while the pose is dragged (P again unpins)")
 
         self.tool_group = QActionGroup(self)

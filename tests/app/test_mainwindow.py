@@ -443,8 +443,16 @@ def test_p_pins_and_unpins_the_selected_joint(qtbot, window):
     window.canvas.setFocus()
     window.doc.select(agent="A", joint="l_ankle")
     qtbot.keyClick(window.canvas, Qt.Key_P)
-    assert window.doc.tool_options.pinned == ("l_ankle",)
+    assert window.doc.tool_options.pinned == (("A", "l_ankle"),)     # A's, not B's
+    assert window.doc.pinned_joints("A") == ("l_ankle",) and window.doc.pinned_joints("B") == ()
     qtbot.keyClick(window.canvas, Qt.Key_P)
+    assert window.doc.tool_options.pinned == ()
+    window.doc.select(joint="object path")                           # no joint: nothing to pin
+    qtbot.keyClick(window.canvas, Qt.Key_P)
+    assert window.doc.tool_options.pinned == ()
+    window.doc.select(joint="l_ankle")
+    qtbot.keyClick(window.canvas, Qt.Key_P)
+    window.new_document()                                            # a new storyboard: no pins
     assert window.doc.tool_options.pinned == ()
 
 

@@ -147,8 +147,8 @@ def test_pinned_feet_stay_while_the_body_moves(qtbot, posed):
     canvas, doc = posed
     before = points(doc)
     for foot in ("l_ankle", "r_ankle"):
-        doc.toggle_pin(foot)                      # the window's P key (Edit > Pin Joint)
-    assert set(doc.tool_options.pinned) == {"l_ankle", "r_ankle"}
+        doc.toggle_pin("A", foot)                 # the window's P key (Edit > Pin Joint)
+    assert set(doc.pinned_joints("A")) == {"l_ankle", "r_ankle"}
     pelvis = before[J["pelvis"]]
     drag(qtbot, canvas, pelvis, pelvis + (0.0, -0.15))                        # crouch
     after = points(doc)
