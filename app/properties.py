@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from PySide6.QtCore import QEvent, Qt
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
                                QLineEdit, QListWidget, QMessageBox, QPushButton, QSpinBox, QVBoxLayout, QWidget)
 
@@ -93,6 +94,7 @@ class PropertiesPanel(QWidget):
         inner = QVBoxLayout(box)
         self.contacts = QListWidget()
         self.contacts.setMaximumHeight(90)
+        self.contacts.installEventFilter(self)   # Delete there deletes the contact, not the keypose
         self.delete_contact = QPushButton("Delete contact")
         inner.addWidget(self.contacts)
         inner.addWidget(self.delete_contact)
@@ -298,6 +300,17 @@ class PropertiesPanel(QWidget):
                                        use_energy=self.use_energy.isChecked(),
                                        use_ctmc=self.use_ctmc.isChecked(), steady=self.steady.isChecked(),
                                        variations=self.variations.value()))
+
+    def eventFilter(self, watched, event) -> bool:
+        """Delete or Backspace in the Contacts list deletes its contact: the window's Delete
+        shortcut (Delete Keypose) took the key and deleted the figure at the playhead."""
+        if watched is self.contacts and event.type() in (QEvent.ShortcutOverride, QEvent.KeyPress) \
+                and event.key() in (Qt.Key_Delete, Qt.Key_Backspace) and self.contacts.currentRow() >= 0:
+            event.accept()
+            if event.type() == QEvent.KeyPress:
+                self._delete_contact()
+            return True
+        return super().eventFilter(watched, event)
 
     def _delete_contact(self):
         row = self.contacts.currentRow()

@@ -438,6 +438,17 @@ def test_a_shortening_that_would_delete_work_asks_first(qtbot, window, dialogs):
     assert window.doc.storyboard.length == 140 and len(dialogs.questions) == 1
 
 
+def test_delete_in_the_contacts_list_deletes_the_contact_not_the_keypose(qtbot, window):
+    load_sample(window)
+    doc, panel = window.doc, window.properties
+    doc.set_frame(60)
+    keys, contacts = len(doc.storyboard.keyposes), len(doc.storyboard.contacts)
+    panel.contacts.setCurrentRow(0)
+    panel.contacts.setFocus()
+    qtbot.keyClick(panel.contacts, Qt.Key_Delete)
+    assert len(doc.storyboard.contacts) == contacts - 1 and len(doc.storyboard.keyposes) == keys
+
+
 def test_p_pins_and_unpins_the_selected_joint(qtbot, window):
     load_sample(window)
     window.canvas.setFocus()
