@@ -465,8 +465,9 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
             self.statusBar().showMessage(f"Preview in {result.wall_time_s * 1000:.0f} ms; "
                                          "the full generation follows the release.", 4000)
             return
-        more = f" (and {len(result.notes) - 1} more)" if len(result.notes) > 1 else ""
-        note = f" {result.notes[0]}{more}." if result.notes else ""   # what finishing could not reach
+        more = f" (and {len(result.notes) - 1} more: point here for all)" if len(result.notes) > 1 else ""
+        note = f" {result.notes[0]}{more}." if result.notes else ""   # what finishing could not reach, worst first
+        self.statusBar().setToolTip("\n".join(result.notes))
         self.statusBar().showMessage(
             f"Generated {count} variation{'s' * (count != 1)} in {result.wall_time_s:.1f} s "
             f"(first step after {result.first_step_s:.2f} s).{note}", 15000)

@@ -35,7 +35,7 @@ def hold_gaps(clip: MotionClip, storyboard: Storyboard) -> list[tuple[Contact, n
 
 def missed_holds(clip: MotionClip, storyboard: Storyboard, tolerance: float = GRIP_TOLERANCE) -> list[str]:
     """One note per object hold whose hand ends farther than `tolerance` from its grip in any of
-    its frames: who, which hand, how far at worst, in which frames."""
+    its frames: who, which hand, how far at worst, in which frames; the worst miss first."""
     notes = []
     for c, frames, gap in hold_gaps(clip, storyboard):
         short = frames[gap > tolerance]
@@ -43,6 +43,7 @@ def missed_holds(clip: MotionClip, storyboard: Storyboard, tolerance: float = GR
             runs = np.split(short, np.flatnonzero(np.diff(short) > 1) + 1)
             where = ", ".join(f"{r[0]}" if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
             frames_word = "frame" if len(short) == 1 else "frames"
-            notes.append(f"{c.agent}'s {c.hand} hand misses the {c.object}'s grip by up to {100 * gap.max():.0f} cm "
-                         f"({frames_word} {where}): move {c.agent} closer there, or the hold's start or end")
-    return notes
+            notes.append((gap.max(), f"{c.agent}'s {c.hand} hand misses the {c.object}'s grip by up to "
+                          f"{100 * gap.max():.0f} cm ({frames_word} {where}): move {c.agent} closer there, or the "
+                          f"hold's start or end"))
+    return [note for _, note in sorted(notes, key=lambda n: -n[0])]

@@ -157,7 +157,8 @@ def test_a_hold_finishing_could_not_reach_is_told_after_generating(qtbot, make_w
     with qtbot.waitSignal(window.session.finished, timeout=10_000):
         window.act_generate.trigger()
     message = window.statusBar().currentMessage()
-    assert message.startswith("Generated 1 variation") and f"{note} (and 1 more)." in message
+    assert message.startswith("Generated 1 variation") and f"{note} (and 1 more: point here for all)." in message
+    assert window.statusBar().toolTip().split("\n")[0] == note   # every note, for the pointer
 
 
 def test_sampler_error_becomes_a_dialog(qtbot, make_window, dialogs):

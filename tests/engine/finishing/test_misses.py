@@ -22,3 +22,7 @@ def test_a_hand_off_its_grip_is_one_note_with_who_how_far_and_when():
     assert len(notes) == 1
     assert notes[0].startswith(f"{hold.agent}'s {hold.hand} hand misses the {hold.object}'s grip by up to 20 cm")
     assert f"(frames {frames[0]}-{frames[-1]})" in notes[0]
+    worse = next(c for c in sb.contacts if c.object is not None and c is not hold)     # a later hold, further off
+    joints[worse.start + 2, sb.agent_index(worse.agent), HANDS[("left", "right").index(worse.hand)]] += (0.0, 0.4, 0.0)
+    notes = missed_holds(replace(clip, joints=joints), sb)
+    assert len(notes) == 2 and "by up to 40 cm" in notes[0] and "by up to 20 cm" in notes[1]   # the worst first
