@@ -249,7 +249,8 @@ class FloorPlan(QWidget):
                 p.setPen(pen)
                 p.setBrush(Qt.NoBrush)
                 p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._walk(t)]))
-        self._paint_objects(p)
+        placed: list[QRectF] = []    # labels drawn so far: a new one that would cover one goes lower
+        self._paint_objects(p, placed)
         moving = self._drag[1] if self._drag and self._drag[0] == "figure" else None
         labels: list[list] = []      # [x, y, agent, frames]: keys standing together share one label
         for k in sorted(sb.keyposes, key=lambda k: k.frame):
@@ -268,21 +269,25 @@ class FloorPlan(QWidget):
             else:
                 labels.append([x, y, k.agent, [k.frame]])
         p.setPen(QColor("#3a3a3a"))
-        placed: list[QRectF] = []
-        for x, y, agent, frames in labels:   # a label that would cover another goes a line lower
-            text = f"{agent} {', '.join(map(str, frames))}"
-            rect = QRectF(p.fontMetrics().boundingRect(text)).translated(x + DISC_R + 2, y - 2)
-            while any(rect.intersects(other) for other in placed):
-                rect.translate(0, LABEL_PX)
-            placed.append(rect)
-            p.drawText(rect.bottomLeft() - QPointF(0, p.fontMetrics().descent()), text)
+        for x, y, agent, frames in labels:
+            self._label(p, placed, QPointF(x + DISC_R + 2, y - 2), f"{agent} {', '.join(map(str, frames))}")
         if self._drag and self._drag[0] == "walk" and len(self._drag[2]) > 1:
             p.setPen(QPen(colors.get(doc.selection.agent, QColor("#333")), 2))
             p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._drag[2]]))
         self._paint_camera(p)
         p.end()
 
-    def _paint_objects(self, p: QPainter) -> None:
+    @staticmethod
+    def _label(p: QPainter, placed: list[QRectF], at: QPointF, text: str) -> None:
+        """Draw text with its baseline starting at `at`, a line lower (and lower) where it would
+        cover a label in `placed` (which it joins): keys and objects standing together overprinted."""
+        rect = QRectF(p.fontMetrics().boundingRect(text)).translated(at)
+        while any(rect.intersects(other) for other in placed):
+            rect.translate(0, LABEL_PX)
+        placed.append(rect)
+        p.drawText(rect.bottomLeft() - QPointF(0, p.fontMetrics().descent()), text)
+
+    def _paint_objects(self, p: QPainter, placed: list[QRectF]) -> None:
         """Each object's footprint where a key of it stands on the floor (a key at a frame nobody
         holds it: in the hands its height is unknown, and taken for the floor it was drawn metres
         off), named with its frame; and, once generated, the way it travels (thin)."""
@@ -303,7 +308,7 @@ class FloorPlan(QWidget):
                 p.setBrush(QColor(OBJECT_COLOR.red(), OBJECT_COLOR.green(), OBJECT_COLOR.blue(), 70))
                 p.drawPolygon(QPolygonF([QPointF(*c) for c in corners]))
                 p.setPen(OBJECT_COLOR.darker(160))
-                p.drawText(QPointF(*(corners.max(0) + (3, 0))), f"{obj.id} {key.frame}")
+                self._label(p, placed, QPointF(*(corners.max(0) + (3, 0))), f"{obj.id} {key.frame}")
 
     def _paint_arrow(self, p: QPainter, key: Keypose, xz: np.ndarray, color: QColor) -> None:
         """The way the keypose faces, as an arrow from its disc (towards the pointer while turned);
