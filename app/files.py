@@ -61,6 +61,9 @@ class FileActions:
                 return False
         storyboard = self._load_storyboard(path, Path(path).name)
         if storyboard is None:
+            if not Path(path).exists():   # a recent file deleted or moved since: off the list
+                self.settings.setValue("recentFiles", [f for f in self.recent_files() if Path(f) != Path(path).resolve()])
+                self._rebuild_recent()
             return False
         self.doc.replace_storyboard(storyboard, Path(path))
         self._remember(Path(path))

@@ -30,6 +30,9 @@ def test_save_and_reopen_byte_identical(window, tmp_path, dialogs):
     assert again.read_bytes() == first
     assert window.recent_files()[0] == str(again.resolve())
     assert dialogs.errors == []
+    again.unlink()                                   # deleted since: it says so and leaves Open Recent
+    assert not window.open_file(str(again.resolve())) and len(dialogs.errors) == 1
+    assert str(again.resolve()) not in window.recent_files() and str(path.resolve()) in window.recent_files()
 
 
 def test_corrupt_file_shows_an_error_and_keeps_the_document(window, tmp_path, dialogs):
