@@ -85,6 +85,12 @@ class Playback(QObject):
     def toggle(self) -> None:
         self.pause() if self.playing else self.play()
 
+    def to_key(self, way: int) -> None:
+        """The playhead to the nearest frame with a key after it (way 1) or before it (-1)."""
+        keys = [f for f in self._doc.storyboard.keyframes() if (f - self._doc.frame) * way > 0]
+        if keys:
+            self._doc.set_frame(min(keys) if way > 0 else max(keys))
+
     def step(self, frames: int) -> None:
         """Move the playhead by `frames`: around the clip when looping, else up to its ends.
         While playing, playback goes on from the new frame."""

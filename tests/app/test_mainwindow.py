@@ -442,6 +442,22 @@ def test_a_shortening_that_would_delete_work_asks_first(qtbot, window, dialogs):
     assert window.doc.storyboard.length == 140 and len(dialogs.questions) == 1
 
 
+def test_home_end_and_page_keys_move_the_playhead_to_the_ends_and_the_keys(qtbot, window):
+    load_sample(window)
+    doc = window.doc
+    window.canvas.setFocus()
+    doc.set_frame(30)
+    keys = doc.storyboard.keyframes()
+    qtbot.keyClick(window.canvas, Qt.Key_PageDown)
+    assert doc.frame == min(f for f in keys if f > 30)
+    qtbot.keyClick(window.canvas, Qt.Key_PageUp)
+    assert doc.frame == max(f for f in keys if f < min(f for f in keys if f > 30))
+    qtbot.keyClick(window.canvas, Qt.Key_End)
+    assert doc.frame == doc.storyboard.length - 1
+    qtbot.keyClick(window.canvas, Qt.Key_Home)
+    assert doc.frame == 0
+
+
 def test_delete_in_the_contacts_list_deletes_the_contact_not_the_keypose(qtbot, window):
     load_sample(window)
     doc, panel = window.doc, window.properties
