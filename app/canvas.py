@@ -87,6 +87,15 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
     def _set_pan(self, pan) -> None:
         self.pan = np.clip(pan, -SKETCH_LIMIT_M / 2, SKETCH_LIMIT_M / 2)
 
+    def resizeEvent(self, event):
+        """What was in view stays in view as the canvas shrinks or grows (shrunk with the
+        window, it showed 59% of the sketch until F)."""
+        old, new = event.oldSize(), event.size()
+        if old.width() > 0 and old.height() > 0 and self.isVisible():
+            ratio = min(new.width() / old.width(), new.height() / old.height())
+            self.zoom = float(np.clip(self.zoom * ratio, 20.0, 2000.0))
+        super().resizeEvent(event)
+
     def frame_sketch(self) -> None:
         """Zoom and pan so that every keypose, path and object outline is in view (F)."""
         sb = self._doc.storyboard

@@ -144,6 +144,16 @@ def test_a_contact_line_goes_to_the_generated_grip_between_object_keys(qtbot, ca
     assert np.linalg.norm(grip - stale) > 0.1
 
 
+def test_what_was_in_view_stays_in_view_when_the_canvas_shrinks(qtbot, canvas):
+    canvas._doc.replace_storyboard(sample_storyboard(), None)
+    canvas.frame_sketch()
+    corners = [canvas.to_uv(np.array(c, float)) for c in ((0, 0), (canvas.width(), canvas.height()))]
+    canvas.resize(canvas.width() // 2, canvas.height() * 2 // 3)
+    for uv in corners:                                      # the old view's corners are still inside
+        x, y = canvas.to_px(uv)
+        assert -1 <= x <= canvas.width() + 1 and -1 <= y <= canvas.height() + 1
+
+
 def test_wheel_zoom_keeps_the_point_under_the_cursor(qtbot, canvas):
     from PySide6.QtCore import QPointF
     from PySide6.QtGui import QWheelEvent
