@@ -103,6 +103,14 @@ def test_stroke_is_smoothed_and_evenly_resampled():
     assert np.abs(out[1:-1, 1]).max() < np.abs(raw[:, 1]).max()
 
 
+def test_a_stroke_keeps_its_shape_however_fast_it_was_drawn():
+    """A 1.6 m semicircle drawn slowly (40 mouse samples) or fast (7): the same arc, not one
+    flattened by averaging over fewer, further-apart samples."""
+    arc = lambda n: 0.8 * np.stack([-np.cos(np.linspace(0, np.pi, n)), np.sin(np.linspace(0, np.pi, n))], -1)
+    slow, fast = clean_stroke(arc(40)), clean_stroke(arc(7))
+    assert slow[:, 1].max() > 0.77 and fast[:, 1].max() > 0.75
+
+
 def test_a_minute_of_scribbling_is_a_stroke_a_file_can_hold():
     """Back and forth over 2 m for 400 m of pen: no more points than a storyboard may hold, so
     the file it is saved in opens again."""
