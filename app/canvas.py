@@ -317,9 +317,10 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
         for i, s in enumerate(getattr(sb, field_name)):
             if not mine(s) or s.end < start or end < s.start:
                 continue
-            # A stroke drawn over a path of the same frames redraws that part of it; a path of
-            # other frames it overlaps would contradict it.
-            redrawn = splice(s.points, raw, 2 * self._hit()) if (s.start, s.end) == (start, end) else None
+            # A stroke that starts on a path of the same joint it overlaps redraws part of it (the
+            # path keeps its frames: after the clip grew, its 0-119 no longer matched 0-199 and the
+            # redraw was refused); any other would contradict it.
+            redrawn = splice(s.points, raw, 2 * self._hit())
             if redrawn is None:
                 self.message.emit(f"A path for the same {'object' if field_name == 'object_paths' else 'joint'} "
                                   f"already covers frames {s.start}-{s.end}: start on it to redraw part of "

@@ -224,6 +224,17 @@ def test_a_path_of_other_frames_is_not_spliced_and_an_overlap_is_refused(qtbot, 
     assert len(doc.storyboard.trajectories) == 3
 
 
+def test_a_path_is_redrawn_from_a_stroke_started_on_it_after_the_clip_grew(qtbot, canvas):
+    doc = canvas._doc
+    doc.set_tool("trajectory")
+    doc.select(agent="A", joint="pelvis")
+    drag(qtbot, canvas, np.stack([np.linspace(-0.8, 0.8, 30), np.zeros(30)], -1))     # frames 0-119
+    doc.undo_stack.push(cmd.SetTiming(doc, doc.storyboard.fps, 200))
+    drag(qtbot, canvas, np.array([[-0.2, 0.0], [0.0, 0.3], [0.2, 0.0]]))               # starts and ends on it
+    [path] = doc.storyboard.trajectories
+    assert (path.start, path.end) == (0, 119) and path.points[:, 1].max() > 0.2
+
+
 def test_the_contact_tool_takes_the_nearest_hand_of_any_person(qtbot, canvas):
     """At a hand-off A's and B's hands are both under the pointer: the click takes the nearer,
     whichever person it belongs to, and the second click the other person's."""
