@@ -8,7 +8,6 @@ with a one-line message, and the document stays as it was.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 
 from PySide6.QtCore import QEvent, QSettings, Qt
@@ -16,8 +15,6 @@ from PySide6.QtGui import QAction, QActionGroup, QKeySequence
 from PySide6.QtWidgets import (QDockWidget, QFrame, QHBoxLayout, QLabel, QMainWindow, QProgressBar, QScrollArea,
                                QSizePolicy, QVBoxLayout, QWidget)
 
-from engine.cpu import usable_cores
-from engine.sampling.events import GenerationResult, StepEvent
 from engine.storyboard import Storyboard
 
 from . import commands as cmd
@@ -26,6 +23,7 @@ from .canvas import SketchCanvas
 from .document import TOOLS, Document
 from .examples import list_examples
 from .files import APP_NAME, FileActions
+from .generation_actions import GenerationActions
 from .floor_plan import FloorPlan
 from .generation import GenerationSettings, StepStream, start_generation
 from .live_preview import LivePreview
@@ -41,7 +39,6 @@ from .view_options import LABELS as VIEW_LABELS
 from .view_options import ViewOptions, ViewOptionsModel
 from .viewport import Viewport
 
-THREADS_KEY = "generation/threads"   # 0 or absent: automatic
 GEOMETRY_KEY, DOCKS_KEY = "window/geometry", "window/docks"
 LAYOUT_VERSION = 2                   # bump when the docks change: an older saved layout is ignored
 TOOL_KEYS = {"select": "V", "keypose": "K", "trajectory": "T", "object": "O", "contact": "C", "erase": "E"}
@@ -76,7 +73,7 @@ class VerticalScroll(QScrollArea):
         self.setMinimumWidth(self.widget().minimumSizeHint().width() + self.verticalScrollBar().sizeHint().width())
 
 
-class MainWindow(FileActions, PoseActions, QMainWindow):
+class MainWindow(FileActions, PoseActions, GenerationActions, QMainWindow):
     def __init__(self, data_dir: Path, settings: QSettings | None = None,
                  generate: Callable[[Storyboard, GenerationSettings], StepStream] = start_generation,
                  autosave_delay_ms: int = 400):
@@ -193,7 +190,7 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         self.speed_actions[self.playback.speed].setChecked(True)
         self.act_generate = a("\u25b6  Generate", self.generate, [QKeySequence("Ctrl+Return"), QKeySequence("Ctrl+Enter")],
                               tip="Generate motion from the storyboard (Ctrl+Enter)")
-        self.act_cancel = a("\u25a0  Cancel", self.session.cancel, QKeySequence(Qt.Key_Escape),
+        self.act_cancel = a("\u25a0  Cancel", self._cancel, QKeySequence(Qt.Key_Escape),
                             tip="Stop the running generation (Esc)", enabled=False)
         self.act_live = a("&Live Preview While Dragging", self.live_preview.set_enabled,
                           tip="While a joint or an object is dragged, a quick preview follows the pointer; "
@@ -319,32 +316,6 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
             view.addAction(dock.toggleViewAction())
         self._rebuild_recent()
 
-    def _build_threads_menu(self, menu) -> None:
-        """Automatic (the cores other programs leave free, engine.cpu) or a fixed count; a
-        preference of this machine, kept in the settings."""
-        menu.setToolTipsVisible(True)
-        group = QActionGroup(self)
-        cores = usable_cores()
-        counts = [0] + sorted({n for n in (1, 2, 4, 8, 16, 32, 64) if n < cores} | {cores})
-        current = self.threads_preference() or 0
-        self.threads_actions: dict[int, QAction] = {}
-        for n in counts:
-            act = menu.addAction("Automatic" if n == 0 else f"{n} thread{'s' * (n > 1)}")
-            act.setCheckable(True)
-            act.setChecked(n == current)
-            act.triggered.connect(lambda _=False, n=n: self.settings.setValue(THREADS_KEY, n))
-            group.addAction(act)
-            self.threads_actions[n] = act
-        self.threads_actions[0].setToolTip("Use the cores that other programs leave free, re-measured while generating")
-
-    def threads_preference(self) -> int | None:
-        """The torch thread count chosen in Generate > CPU Threads; None for automatic."""
-        try:
-            n = int(self.settings.value(THREADS_KEY, 0) or 0)
-        except (TypeError, ValueError):
-            return None
-        return n if n > 0 else None
-
     def _build_toolbar(self) -> None:
         self.toolbar = MainToolbar(self, [list(self.tool_actions.values()), [self.act_copy_pose, self.act_mirror],
                                           [self.act_undo, self.act_redo]], [self.act_generate, self.act_cancel],
@@ -424,58 +395,10 @@ class MainWindow(FileActions, PoseActions, QMainWindow):
         for name, action in self.view_actions.items():
             action.setChecked(getattr(options, name))
 
-    # ---- generation ------------------------------------------------------------------------------
-    def generation_settings(self) -> GenerationSettings:
-        """The document's settings with this machine's: threads, and under software OpenGL (which
-        draws the streamed previews on the same cores) a core left to the drawing."""
-        return replace(self.doc.settings, threads=self.threads_preference(),
-                       reserve_cores=1.0 if self.viewport.draws_on_cpu() else 0.0)
-
-    def generate(self, after_drag: bool = False) -> None:
-        if self.session.running and not self.session.settings.preview:   # a preview gives way
-            return
-        self.properties.commit_text()    # typed, not yet confirmed with Enter
-        settings = replace(self.generation_settings(), after_drag=after_drag)
-        problem = self.session.start(settings)
-        if problem is not None:
-            self.error(problem)
-            return
-        self.progress.setRange(0, settings.steps)
-        self.progress.setValue(0)
-        self.statusBar().showMessage("Generating\u2026  (Esc cancels)")
-
     def _keep_selected_figure_in_view(self) -> None:
         key = cmd.find_keypose(self.doc.storyboard, self.doc.selection.agent, self.doc.frame)
         if key is not None:
             self.canvas.keep_in_view(key.points[key.mask])
-
-    def _on_running(self, running: bool) -> None:
-        self.act_generate.setEnabled(not running)
-        self.act_cancel.setEnabled(running)
-        self.progress.setVisible(running)
-
-    def _show_progress(self, event: StepEvent) -> None:
-        self.progress.setRange(0, event.num_steps)
-        self.progress.setValue(event.step + 1)
-        energies = "  ".join(f"{k} {v:.3g}" for k, v in list(event.energies.items())[:4])
-        self.statusBar().showMessage(f"Generating: step {event.step + 1} / {event.num_steps}  t={event.t:.2f}  {energies}")
-
-    def _on_failed(self, message: str) -> None:
-        self.statusBar().showMessage("Generation failed; the motion shown is what it was.", 15000)
-        self.error(f"Generation failed: {message}")
-
-    def _on_generated(self, result: GenerationResult) -> None:
-        count = len(result.clips)
-        if self.session.settings.preview:
-            self.statusBar().showMessage(f"Preview in {result.wall_time_s * 1000:.0f} ms; "
-                                         "the full generation follows the release.", 4000)
-            return
-        more = f" (and {len(result.notes) - 1} more: point here for all)" if len(result.notes) > 1 else ""
-        note = f" {result.notes[0]}{more}." if result.notes else ""   # what finishing could not reach, worst first
-        self.statusBar().setToolTip("\n".join(result.notes))
-        self.statusBar().showMessage(
-            f"Generated {count} variation{'s' * (count != 1)} in {result.wall_time_s:.1f} s "
-            f"(first step after {result.first_step_s:.2f} s).{note}", 15000)
 
     # ---- closing ---------------------------------------------------------------------------------
     def closeEvent(self, event) -> None:

@@ -61,6 +61,7 @@ class GenerationSession(QObject):
         self._document_version = 0   # bumped when the document is replaced (new, open, recover) ...
         self._run_version = 0        # ... and what it was when the current run started: its result
                                      # belongs to the storyboard it was asked for, not to the next one
+        self._cancelling = False
         self._started_at = 0.0
         self._preview_s = 0.15       # how long a preview takes here (the last finished one's time)
         self._settle = QTimer(self)
@@ -84,10 +85,19 @@ class GenerationSession(QObject):
     def outdated(self) -> bool:
         return self._outdated
 
+    @property
+    def cancelling(self) -> bool:
+        return self._cancelling
+
+    @property
+    def busy(self) -> bool:
+        """A full generation runs and has not been cancelled: a new one would have to wait."""
+        return self.running and not self.settings.preview and not self._cancelling
+
     def start(self, settings: GenerationSettings) -> str | None:
         """Generate the document's storyboard as it is now; None when started (or queued behind
-        a preview, which it cancels), else why not."""
-        if self.running and not self.settings.preview:
+        a preview or a cancelled generation, which ends first), else why not."""
+        if self.busy:
             return "A generation is running: wait for it, or press Esc to cancel it."
         storyboard = copy.deepcopy(self._doc.storyboard)
         problem = _why_not(storyboard)
@@ -106,6 +116,7 @@ class GenerationSession(QObject):
 
     def cancel(self) -> None:
         self._pending = None
+        self._cancelling = self.running       # until its end lands: a new request waits for it
         self._runner.cancel()
 
     def _queue(self, storyboard: Storyboard, settings: GenerationSettings) -> None:
@@ -133,6 +144,7 @@ class GenerationSession(QObject):
         if self._pending is None:
             return
         (storyboard, settings), self._pending = self._pending, None
+        self._cancelling = False
         self.storyboard, self.settings, self.latest = storyboard, settings, None
         self._started_at = time.monotonic()
         self._run_version = self._document_version
@@ -157,6 +169,7 @@ class GenerationSession(QObject):
     def _on_finished(self, result: GenerationResult) -> None:
         clips = list(result.clips)
         self.latest = None
+        self._cancelling = False
         if self._run_version != self._document_version:   # it ended before the cancel reached it
             self.cancelled.emit()
             self._start_pending()
@@ -173,11 +186,13 @@ class GenerationSession(QObject):
 
     def _on_failed(self, message: str) -> None:
         self.latest = None
+        self._cancelling = False
         self.failed.emit(message)
         self._start_pending()
 
     def _on_cancelled(self) -> None:
         self.latest = None
+        self._cancelling = False
         if self._pending is None:       # cancelled by the person, not replaced by a newer request
             self.cancelled.emit()
         self._start_pending()

@@ -458,6 +458,19 @@ def test_home_end_and_page_keys_move_the_playhead_to_the_ends_and_the_keys(qtbot
     assert doc.frame == 0
 
 
+def test_generate_right_after_esc_waits_for_the_cancel_then_runs(qtbot, make_window):
+    window = make_window(generate=FakeSampler(delay_s=0.1))
+    load_sample(window)
+    window.doc.set_settings(window.doc.settings.__class__(steps=5, seed=3))
+    window.act_generate.trigger()
+    qtbot.waitUntil(lambda: window.session.latest is not None, timeout=5000)      # a step under way
+    window.act_cancel.trigger()
+    assert window.statusBar().currentMessage() == "Cancelling\u2026" and window.act_generate.isEnabled()
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
+        window.act_generate.trigger()                                          # before the cancel lands
+    assert len(window.doc.takes) == 1 and window.doc.takes[0].seed == 3
+
+
 def test_delete_in_the_contacts_list_deletes_the_contact_not_the_keypose(qtbot, window):
     load_sample(window)
     doc, panel = window.doc, window.properties
