@@ -236,6 +236,7 @@ class FileActions:
     def export_png(self) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Export 3D View", self._last_dir(), "PNG images (*.png)")
         if path:
+            path = path if Path(path).suffix else str(Path(path).with_suffix(".png"))   # as the other exports
             try:
                 self.viewport.grab_png(path)
             except OSError as e:

@@ -68,6 +68,12 @@ def test_the_exported_bvh_imports_back_from_the_menu(generated, save_dialog, tmp
     assert generated.doc.reference.num_humans == 2 and generated.doc.reference.num_frames == generated.doc.clip.num_frames
 
 
+def test_the_3d_view_exports_to_a_png_even_when_the_name_has_no_suffix(generated, save_dialog, tmp_path, dialogs):
+    save_dialog.path = tmp_path / "view"
+    menu_action(generated, "Export 3D View").trigger()
+    assert (tmp_path / "view.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and dialogs.errors == []
+
+
 def test_gltf_export_writes_a_glb(generated, save_dialog, tmp_path, dialogs):
     save_dialog.path = tmp_path / "scene.glb"
     action = menu_action(generated, "Export Scene (glTF)")
