@@ -100,6 +100,9 @@ class GenerationActions:
         more = f" (and {len(result.notes) - 1} more: point here for all)" if len(result.notes) > 1 else ""
         note = f" {result.notes[0]}{more}." if result.notes else ""   # what finishing could not reach, worst first
         self.statusBar().setToolTip("\n".join(result.notes))
+        frames, length = (result.clips[0].num_frames if result.clips else 0), self.doc.storyboard.length
+        if result.clips and frames != length:   # the clip's length changed while it was generated
+            note = f" It was made for {frames} frames; the clip has {length} now: Ctrl+Enter generates it again." + note
         self.statusBar().showMessage(
             f"Generated {count} variation{'s' * (count != 1)} in {result.wall_time_s:.1f} s "
             f"(first step after {result.first_step_s:.2f} s).{note}", 15000)

@@ -471,6 +471,16 @@ def test_generate_right_after_esc_waits_for_the_cancel_then_runs(qtbot, make_win
     assert len(window.doc.takes) == 1 and window.doc.takes[0].seed == 3
 
 
+def test_a_take_made_for_a_clip_length_changed_meanwhile_says_so(qtbot, make_window):
+    window = make_window(generate=FakeSampler(delay_s=0.05))
+    load_sample(window)
+    window.doc.set_settings(window.doc.settings.__class__(steps=4))
+    with qtbot.waitSignal(window.session.finished, timeout=10_000):
+        window.act_generate.trigger()
+        window.doc.undo_stack.push(cmd.SetTiming(window.doc, window.doc.storyboard.fps, 60))   # while it runs
+    assert "made for 120 frames; the clip has 60 now" in window.statusBar().currentMessage()
+
+
 def test_delete_in_the_contacts_list_deletes_the_contact_not_the_keypose(qtbot, window):
     load_sample(window)
     doc, panel = window.doc, window.properties
