@@ -66,9 +66,7 @@ class PhaseStrip(pg.PlotWidget):
         storyboard with neither contacts nor objects (the planner's "carry" there carries nothing)."""
         sb = self._doc.storyboard
         n = sb.length
-        idle = not (sb.contacts or sb.objects)
-        self.empty_hint.setText(NO_CONTACTS_HINT if idle else EMPTY_HINT)
-        if idle:
+        if not (sb.contacts or sb.objects):
             phase = None
         if phase is None:
             stacked = np.zeros((len(PHASES) + 1, n))
@@ -96,6 +94,7 @@ class PhaseStrip(pg.PlotWidget):
         bottom = -(max(len(contacts), 1)) * LANE - 0.06
         self.getPlotItem().setRange(xRange=(0, sb.length - 1), yRange=(bottom, 1.0), padding=0)
         self.empty_hint.setPos((sb.length - 1) / 2, 0.5)
+        self.empty_hint.setText(EMPTY_HINT if sb.contacts or sb.objects else NO_CONTACTS_HINT)
         self._playhead.setValue(self._doc.frame)
         self.show_document_phase()
 

@@ -61,7 +61,6 @@ class GenerationSession(QObject):
         self._document_version = 0   # bumped when the document is replaced (new, open, recover) ...
         self._run_version = 0        # ... and what it was when the current run started: its result
                                      # belongs to the storyboard it was asked for, not to the next one
-        self._cancelling = False
         self._started_at = 0.0
         self._preview_s = 0.15       # how long a preview takes here (the last finished one's time)
         self._settle = QTimer(self)
@@ -87,12 +86,13 @@ class GenerationSession(QObject):
 
     @property
     def cancelling(self) -> bool:
-        return self._cancelling
+        """The run was asked to stop and its end has not landed: a new request waits for it."""
+        return self._runner.cancelling
 
     @property
     def busy(self) -> bool:
         """A full generation runs and has not been cancelled: a new one would have to wait."""
-        return self.running and not self.settings.preview and not self._cancelling
+        return self.running and not self.settings.preview and not self.cancelling
 
     def start(self, settings: GenerationSettings) -> str | None:
         """Generate the document's storyboard as it is now; None when started (or queued behind
@@ -116,7 +116,6 @@ class GenerationSession(QObject):
 
     def cancel(self) -> None:
         self._pending = None
-        self._cancelling = self.running       # until its end lands: a new request waits for it
         self._runner.cancel()
 
     def _queue(self, storyboard: Storyboard, settings: GenerationSettings) -> None:
@@ -144,7 +143,6 @@ class GenerationSession(QObject):
         if self._pending is None:
             return
         (storyboard, settings), self._pending = self._pending, None
-        self._cancelling = False
         self.storyboard, self.settings, self.latest = storyboard, settings, None
         self._started_at = time.monotonic()
         self._run_version = self._document_version
@@ -169,7 +167,6 @@ class GenerationSession(QObject):
     def _on_finished(self, result: GenerationResult) -> None:
         clips = list(result.clips)
         self.latest = None
-        self._cancelling = False
         if self._run_version != self._document_version:   # it ended before the cancel reached it
             self.cancelled.emit()
             self._start_pending()
@@ -186,13 +183,11 @@ class GenerationSession(QObject):
 
     def _on_failed(self, message: str) -> None:
         self.latest = None
-        self._cancelling = False
         self.failed.emit(message)
         self._start_pending()
 
     def _on_cancelled(self) -> None:
         self.latest = None
-        self._cancelling = False
         if self._pending is None:       # cancelled by the person, not replaced by a newer request
             self.cancelled.emit()
         self._start_pending()

@@ -43,6 +43,10 @@ class GenerationWorker(QObject):
         """Thread-safe; the worker stops before its next step."""
         self._cancel.set()
 
+    @property
+    def cancel_requested(self) -> bool:
+        return self._cancel.is_set()
+
     def take_latest(self) -> StepEvent | None:
         with self._lock:
             event, self._latest = self._latest, None
@@ -122,6 +126,11 @@ class GenerationRunner(QObject):
     def cancel(self) -> None:
         if self._worker is not None:
             self._worker.cancel()
+
+    @property
+    def cancelling(self) -> bool:
+        """Running, and asked to stop: its end has not landed yet."""
+        return self._worker is not None and self._worker.cancel_requested
 
     def shutdown(self, timeout_ms: int = 5000) -> None:
         """Cancel and join the thread (window close, tests)."""

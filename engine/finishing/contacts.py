@@ -40,7 +40,6 @@ _ARM = [*ELBOWS, *HANDS]
 # engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
 BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
                         + [child not in _ARM for _, child in BONES])
-                                               # to take a forearm out of an object (0 included)
 
 
 @dataclass
@@ -443,7 +442,7 @@ def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboar
         if obj_pose is not None and moving.any():
             frames, people = np.nonzero(moving)
             new_elbow = swivel_clear(shoulder, new_elbow, new_wrist, obj_pose[frames],
-                                      [o.spec for o in storyboard.objects], config, _arm_runs(frames, people))
+                                     [o.spec for o in storyboard.objects], config, _arm_runs(frames, people))
         out[..., ELBOWS[side], :][moving] = new_elbow
         out[..., HANDS[side], :][moving] = new_wrist
     return out

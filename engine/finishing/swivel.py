@@ -14,6 +14,7 @@ from ..objects import ObjectSpec, world_to_local
 from ..skeleton import ELBOWS, HANDS, SHOULDERS
 
 SWIVELS = np.deg2rad(np.arange(-180, 180, 5))  # elbow angles about the shoulder-wrist line tried
+                                               # to take a forearm out of an object (0 included)
 
 
 def arm_penetration(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,
