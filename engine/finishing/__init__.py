@@ -41,7 +41,7 @@ from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .steady import SteadyConfig, steady_body
 from .timing import retime_to_keys, with_hold_ends
-from .warp import WarpConfig, follow_paths, sketched_scale, warp_to_keyposes
+from .warp import BODY_PARTS, WarpConfig, follow_paths, scale_per_bone, sketched_scales, warp_to_keyposes
 
 TUNED_FPS = 20.0   # the configs' durations (their DURATIONS fields) are frames at this rate
 
@@ -62,14 +62,14 @@ class FinishConfig:
 
 def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Joints (N, H, 22, 3) -> (the same motion on one rigid skeleton per person, its bone
-    offsets (H, 22, 3)). With a storyboard, a body its keyposes show larger is scaled up
-    (pelvis height with it): the decoder draws bodies towards the average size."""
+    offsets (H, 22, 3)). With a storyboard, body parts its keyposes show larger are scaled up
+    (the pelvis height with the legs): the decoder draws bodies towards the average size."""
     fixed, all_offsets = [], []
     for h in range(joints.shape[1]):
         offsets = fit_offsets(joints[:, h], iterations=1)  # one refit of the branching bones is enough here
-        scale = sketched_scale(offsets, storyboard, h) if storyboard is not None else 1.0
-        root = joints[:, h, 0] * (1.0, scale, 1.0)
-        offsets = offsets * scale
+        scales = sketched_scales(offsets, storyboard, h) if storyboard is not None else dict.fromkeys(BODY_PARTS, 1.0)
+        root = joints[:, h, 0] * (1.0, scales["legs"], 1.0)
+        offsets = offsets * scale_per_bone(scales)[:, None]
         rotations = steady_rotations(joints[:, h], root, inverse_kinematics(joints[:, h], offsets), offsets)
         fixed.append(forward_kinematics(root, rotations, offsets))
         all_offsets.append(offsets)

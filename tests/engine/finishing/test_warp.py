@@ -11,11 +11,11 @@ from engine.finishing import consistent_skeleton, finish
 from engine.finishing.keys import key_frames, spread
 from engine.finishing.limbs import LIMBS
 from engine.finishing.steady import SteadyConfig, frame_pops
-from engine.finishing.warp import follow_paths, sketched_scale, solve_keypose, warp_to_keyposes
+from engine.finishing.warp import BODY_PARTS, follow_paths, scale_per_bone, sketched_scales, solve_keypose, warp_to_keyposes
 from engine.geometry.polylines import point_polyline_distance
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.metrics import keypose_errors_2d
-from engine.skeleton import bone_lengths, fit_offsets
+from engine.skeleton import bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
 from engine.sketchify import sketchify
 from engine.synth import synthesize
 
@@ -44,10 +44,29 @@ def test_spread_is_exact_at_keys_linear_between_and_fades_outside():
 
 
 @pytest.mark.parametrize("drawn, expected", [(1.0, 1.0), (1.05, 1.05), (0.8, 1.0), (1.4, 1.1)])
-def test_sketched_scale_grows_a_body_the_sketch_shows_larger_by_at_most_a_tenth(scene, drawn, expected):
+def test_sketched_scales_grow_a_body_the_sketch_shows_larger_by_at_most_a_tenth(scene, drawn, expected):
     clip, sb = scene
     offsets = fit_offsets(clip.joints[:, 0].astype(float), iterations=1) / drawn   # the model drew it smaller
-    assert sketched_scale(offsets, sb, 0) == pytest.approx(expected, abs=0.03)
+    assert sketched_scales(offsets, sb, 0) == pytest.approx(dict.fromkeys(BODY_PARTS, expected), abs=0.03)
+
+
+def test_arms_drawn_longer_grow_the_arms_and_leave_the_legs_and_the_pelvis_height(scene):
+    """A person built unlike the decoder's bodies (a salsa dancer's long arms) keeps the legs the
+    sketch shows: grown with the arms, they lifted the pelvis and pushed it along the camera ray."""
+    clip, sb = scene
+    own = fit_offsets(clip.joints[:, 0].astype(float), iterations=1)
+    arms = scale_per_bone({"legs": 1.0, "arms": 1.3, "trunk": 1.0})
+    scales = sketched_scales(own / arms[:, None], sb, 0)                   # the model drew short arms
+    assert scales["arms"] == pytest.approx(1.1, abs=0.01)
+    assert scales["legs"] == pytest.approx(1.0, abs=0.03) and scales["trunk"] == pytest.approx(1.0, abs=0.03)
+    joints = clip.joints.astype(float)
+    short_arms = joints.copy()
+    short_arms[:, 0] = forward_kinematics(joints[:, 0, 0], inverse_kinematics(joints[:, 0], own / arms[:, None]),
+                                          own / arms[:, None])
+    fixed, offsets = consistent_skeleton(short_arms, sb)
+    assert np.abs(fixed[:, 0, 0, 1] - joints[:, 0, 0, 1]).max() < 0.01          # pelvis height kept
+    grown = np.linalg.norm(offsets[0], axis=-1) / np.linalg.norm(own / arms[:, None], axis=-1).clip(1e-9)
+    assert grown[[16, 18, 20]] == pytest.approx(1.1, abs=0.02) and grown[[4, 7]] == pytest.approx(1.0, abs=0.03)
 
 
 def test_solve_keypose_lands_on_the_sketch_with_the_feet_on_the_ground_and_the_bones_nearly_kept(scene):
