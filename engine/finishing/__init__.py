@@ -8,7 +8,7 @@ that keep each person's bone lengths:
    keys marked so (timing.py);
 1. one skeleton per person (bone offsets fitted to the generated joints; the decoder predicts
    joints freely, so bones stretch a little from frame to frame);
-2. keyposes and pelvis paths, by motion warping (warp.py);
+2. keyposes, by motion warping (warp.py), and pelvis strokes walked on time (paths.py);
 3. feet standing on the ground, planted while in stance (where a keypose in the stance has the
    foot), stepping between plants (one foot at a time: walk.py), the body lowering where it
    stands too tall for its planted legs (feet.py);
@@ -41,7 +41,8 @@ from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .steady import SteadyConfig, steady_body
 from .timing import retime_to_keys, with_hold_ends
-from .warp import BODY_PARTS, WarpConfig, follow_paths, scale_per_bone, sketched_scales, warp_to_keyposes
+from .paths import follow_paths
+from .warp import BODY_PARTS, WarpConfig, scale_per_bone, sketched_scales, warp_to_keyposes
 
 TUNED_FPS = 20.0   # the configs' durations (their DURATIONS fields) are frames at this rate
 
@@ -98,7 +99,7 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
     if config.keyposes:
         joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)
     if config.paths:
-        joints = follow_paths(joints, storyboard, config.warp)
+        joints = follow_paths(joints, storyboard, config.warp, clip.fps)
     if config.contacts and clip.obj_pose is not None and storyboard.objects:   # before the feet plant
         joints = step_within_reach(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
     if config.feet:  # before the object: hands that hold it must not move after it is placed

@@ -1,19 +1,16 @@
-"""Motion warping onto the storyboard's keyposes and pelvis paths (Witkin and Popovic, 1995).
+"""Motion warping onto the storyboard's keyposes (Witkin and Popovic, 1995).
 
 A generated motion follows its sketch only roughly. At every keyframe the warp solves the pose
-that lands exactly on the sketched keypose in the sketch plane, and along every pelvis stroke
-the root position that lies on the stroke; the differences (each joint's displacement from the
-pelvis in the body's own frame, an offset of the root) are spread over the neighbouring frames
-(the root's from key to key, the pose's fading within pose_falloff of its key), so the motion
-keeps its own dynamics while passing through the sketch.
+that lands exactly on the sketched keypose in the sketch plane; the differences (each joint's
+displacement from the pelvis in the body's own frame, an offset of the root) are spread over the
+neighbouring frames (the root's from key to key, the pose's fading within pose_falloff of its
+key), so the motion keeps its own dynamics while passing through the sketch. Pelvis strokes are
+walked afterwards (paths.py).
 
 A 2D sketch does not give depth; the ground does. Every sketched joint slides along its camera
 ray to a depth that keeps the generated pose's depth differences along its bones while the feet
 it stands on touch the ground (a least-squares fit); a slide of the whole figure along the
-viewing direction keeps the sketch exact. Pelvis paths are lifted to where the stroke's ray
-meets the pelvis height at which the lower foot touches the ground, and walked from their first
-point at their first frame to their last at their last; they leave the keyposes where the warp
-put them.
+viewing direction keeps the sketch exact.
 
 Joint arrays are (N, H, 22, 3) in metres with consistent bone lengths: `offsets` (H, 22, 3) are
 each person's bones, FK(joints[:, h, 0], IK(joints[:, h], offsets[h]), offsets[h]) == joints.
@@ -27,12 +24,11 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..camera import StoryboardCamera
-from ..geometry.polylines import closest_on_polyline, resample_polyline
 from ..skeleton import FEET, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
 from .feet import reach_with_leg
-from .keys import closeness_to_keys, key_frames, spread
+from .keys import closeness_to_keys, spread
 
 PELVIS, L_HIP, R_HIP = JOINT_INDEX["pelvis"], JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]
 LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera is too level to
@@ -41,20 +37,28 @@ LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera 
 
 @dataclass
 class WarpConfig:
-    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "pose_falloff", "path_smoothing", "heading_smoothing")
+    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "pose_falloff", "path_smoothing", "heading_smoothing",
+                                            "speed_window", "way_smoothing")
     # (frames at TUNED_FPS)
     falloff: int = 12             # frames over which an offset fades in before the first key / out after the last
     pose_falloff: int = 60        # frames over which a key's pose change (not its place) fades out between
                                   # keys: spread whole over a 66-frame walk, a posed figure's straight template
                                   # knee turned with the body and swung the knee 40 cm in a frame (20 frames
                                   # did as well for pops but moved the pelvis paths 1.3 cm further off)
-    path_smoothing: float = 4.0   # frames; Gaussian sigma of the per-frame path offsets
+    path_smoothing: float = 2.5   # frames; Gaussian sigma of the per-frame path offsets
     heading_smoothing: float = 1.5  # frames; Gaussian sigma of the heading that a key's pose change turns
                                   # with (a real dancer's spin read off the hips turned 135 degrees in one
                                   # frame, and a spread pose change swung a wrist 40 cm with it)
     path_passes: int = 2          # smoothing pulls points off the stroke a little; project again
     path_tolerance: float = 0.03  # m in the sketch plane; closer than this to its stroke, a pelvis is
                                   # left alone (a hand-drawn stroke wobbles; the walk should not)
+    path_top_speed: float = 4.0   # m/s; the fastest a pelvis is taken to go along its stroke (paths.py)
+    rush_speeds: tuple[float, float] = (2.5, 3.5)   # m/s; a generated pace along a stroke faster than the
+                                  # first (over speed_window frames) is blended towards even progress, wholly
+                                  # at the second (paths.py; (2, 3) did as well on real dancers, worse on
+                                  # synthesized scenes)
+    speed_window: int = 5         # frames
+    way_smoothing: float = 1.5    # frames; Gaussian sigma of the progress along a stroke
     foot_height: float = 0.02     # m; height of the foot joint standing on the ground (as FeetConfig's)
     # Keypose depth fit (solve_keypose); weights of its residuals (m), 1 for a bone's depth change.
     stance_tolerance: float = 0.08  # m; a generated foot this close to the lower one's height stands
@@ -64,7 +68,6 @@ class WarpConfig:
     depth_anchor: float = 1e-3    # a joint's depth change: places a figure no standing foot places
 
 
-PATH_SAMPLES = 200   # points a stroke is resampled to when measuring how far along it a pelvis is
 # Body parts a sketch scales apart (the salsa dancers' arms are 20-60% longer than the decoder
 # draws them, their legs 2-10%: one scale for all grew legs by the arms' measure and lifted the
 # pelvis 4 cm, 11 cm deeper along a camera ray): the bones ending at each part's joints, and the
@@ -108,7 +111,7 @@ def scale_per_bone(scales: dict[str, float]) -> np.ndarray:
     return out
 
 
-def _grounding_height(joints: np.ndarray, foot_height: float) -> np.ndarray:
+def grounding_height(joints: np.ndarray, foot_height: float) -> np.ndarray:
     """How far (...) poses (..., 22, 3) must move up for their lower foot to stand on the ground."""
     return foot_height - joints[..., list(FEET), 1].min(-1)
 
@@ -162,7 +165,7 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
         elif PARENTS[j] >= 0:
             out[j] = out[PARENTS[j]] + joints[j] - joints[PARENTS[j]]
     if abs(back[1]) > LEVEL:   # the lower foot exactly on the ground: a slide along the ray keeps the sketch
-        out += _grounding_height(out, config.foot_height) / back[1] * back
+        out += grounding_height(out, config.foot_height) / back[1] * back
     return out
 
 
@@ -206,89 +209,3 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         for side, foot in enumerate(FEET):
             out[:, h] = reach_with_leg(out[:, h], side, out[:, h, foot] + near * (target[:, foot] - out[:, h, foot]))
     return out
-
-
-def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig = WarpConfig()) -> np.ndarray:
-    """People whose pelvis has a stroke walk on it: over the stroke's span the body moves so its
-    pelvis is over the nearest point of the path drawn on the floor plan, or else projects onto
-    the nearest point of the sketched stroke, with the lower foot on the ground; the offset is
-    smoothed and fades out around the span. joints (N, H, 22, 3) -> same."""
-    out = joints.copy()
-    n, cam = len(joints), storyboard.camera
-    level = abs(cam.basis()[2, 1]) <= LEVEL
-    for stroke in storyboard.trajectories:
-        if stroke.joint != "pelvis" or (level and stroke.floor is None):
-            continue
-        h = storyboard.agent_index(stroke.agent)
-        span = np.arange(stroke.start, min(stroke.end, n - 1) + 1)
-        keys = key_frames(storyboard)[h]
-        out[:, h] += _to_stroke_ends(out[:, h], stroke, span, keys, cam, config)[:, None, :]
-        for _ in range(config.path_passes):
-            pelvis = out[span, h, PELVIS]
-            height = pelvis[:, 1] + _grounding_height(out[span, h], config.foot_height)
-            if stroke.floor is not None:         # depth drawn: walk over the floor path itself
-                xz = _towards_path(pelvis[:, [0, 2]], stroke.floor, config.path_tolerance)
-                lifted = np.stack([xz[:, 0], height, xz[:, 1]], -1)
-            else:                                # depth from the camera ray, at the walking height
-                lifted = cam.unproject_to_height(_towards_path(cam.project(pelvis), stroke.points, config.path_tolerance), height)
-            shift = gaussian_filter1d(lifted - pelvis, config.path_smoothing, axis=0, mode="nearest")
-            # The span's offsets, held at its ends and faded out beyond them.
-            full = spread(n, list(span), shift, config.falloff)
-            if keys:   # the keyposes are placed already (depth included): the path moves the rest
-                full -= spread(n, keys, full[keys], config.falloff)
-            out[:, h] += full[:, None, :]
-    return out
-
-
-def _to_stroke_ends(person: np.ndarray, stroke, span: np.ndarray, keys: list[int],
-                    camera: StoryboardCamera, config: WarpConfig) -> np.ndarray:
-    """Offsets (N, 3) of one person (N, 22, 3) that walk the pelvis along a stroke from its first
-    point at its first frame to its last point at its last: the way along the stroke the person
-    has come (`_progress`) gains, between those ends and the person's keyframes in the span
-    (placed already: no change there), what it lacks there, evenly over the frames; beyond the
-    span the ends' offsets hold, easing to none at the nearest keyframes. A stroke says where a
-    walk begins and ends, and when: walked only as far as the generated motion went, a 1.8 m walk
-    keyed only at its start ended at 61% of the way (20-23% with other seeds)."""
-    n = len(person)
-    if len(span) < 2:
-        return np.zeros((n, 3))
-    pelvis = person[span, PELVIS]
-    if stroke.floor is not None:
-        ground = resample_polyline(np.asarray(stroke.floor, float), PATH_SAMPLES)
-    else:   # lifted to the standing pelvis' height, as follow_paths lifts it
-        height = pelvis[:, 1] + _grounding_height(person[span], config.foot_height)
-        ground = camera.unproject_to_height(resample_polyline(np.asarray(stroke.points, float), PATH_SAMPLES),
-                                            float(np.mean(height)))[:, [0, 2]]
-    length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(ground, axis=0), axis=-1))])
-    come = length[_progress(pelvis[:, [0, 2]], ground)]                        # (M,) metres along
-    ends = {0: 0.0, len(span) - 1: length[-1]}
-    anchors = sorted({i for i, f in enumerate(span) if f in keys} | set(ends))
-    lack = np.array([0.0 if span[i] in keys else ends[i] - come[i] for i in anchors])
-    if np.abs(lack).max() <= config.path_tolerance:
-        return np.zeros((n, 3))
-    way = np.clip(np.maximum.accumulate(come + np.interp(np.arange(len(span)), anchors, lack)), 0.0, length[-1])
-    moved = np.stack([np.interp(way, length, ground[:, i]) - np.interp(come, length, ground[:, i]) for i in range(2)], -1)
-    shift = np.stack([moved[:, 0], np.zeros(len(span)), moved[:, 1]], -1)
-    frames = sorted(set(keys) - set(span.tolist())) + span.tolist()
-    values = np.concatenate([np.zeros((len(frames) - len(span), 3)), shift])
-    order = np.argsort(frames)
-    return np.stack([np.interp(np.arange(n), np.asarray(frames)[order], values[order, i]) for i in range(3)], -1)
-
-
-def _progress(points: np.ndarray, dense: np.ndarray) -> np.ndarray:
-    """Index into a densely resampled path on the ground (S, 2) of the point nearest each of
-    points (M, 2) in time order, searched a little behind and further ahead of the last one (a
-    path that loops or doubles back is not jumped across)."""
-    out, at = np.empty(len(points), int), 0
-    for i, p in enumerate(points):
-        lo, hi = max(at - PATH_SAMPLES // 20, 0), min(at + PATH_SAMPLES // 10, len(dense))
-        at = lo + int(np.argmin(np.linalg.norm(dense[lo:hi] - p, axis=-1)))
-        out[i] = at
-    return out
-
-
-def _towards_path(points: np.ndarray, path: np.ndarray, tolerance: float) -> np.ndarray:
-    """Points (L, 2) moved onto the polyline path (M, 2), but only to within `tolerance` of it."""
-    off = closest_on_polyline(points, path) - points
-    dist = np.linalg.norm(off, axis=-1, keepdims=True)
-    return points + off * np.clip(1.0 - tolerance / np.maximum(dist, 1e-9), 0.0, None)

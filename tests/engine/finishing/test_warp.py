@@ -11,7 +11,7 @@ from engine.finishing import consistent_skeleton, finish
 from engine.finishing.keys import key_frames, spread
 from engine.finishing.limbs import LIMBS
 from engine.finishing.steady import SteadyConfig, frame_pops
-from engine.finishing.warp import BODY_PARTS, follow_paths, scale_per_bone, sketched_scales, solve_keypose, warp_to_keyposes
+from engine.finishing.warp import BODY_PARTS, scale_per_bone, sketched_scales, solve_keypose, warp_to_keyposes
 from engine.geometry.polylines import point_polyline_distance
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.metrics import keypose_errors_2d
@@ -135,65 +135,6 @@ def test_a_keypose_the_body_leans_into_keeps_the_legs_under_it_between_keys(scen
     feet = [10, 11]
     assert np.abs(warped[:, :, feet] - joints[:, :, feet]).max() < 0.15
     assert warped[:, :, feet, 1].min(-1).max() < 0.12                         # one foot always down
-
-
-def test_follow_paths_puts_the_pelvis_on_its_stroke_and_leaves_the_keyposes_where_they_are(scene):
-    clip, sb = scene
-    joints, offsets = consistent_skeleton(disturbed(clip.joints) + (0.3, 0.0, 0.0))
-    keyed = warp_to_keyposes(joints, offsets, sb)
-    moved = follow_paths(keyed, sb)
-    for stroke in sb.trajectories:
-        if stroke.joint != "pelvis":
-            continue
-        h, span = sb.agent_index(stroke.agent), slice(stroke.start, stroke.end + 1)
-        err = lambda j: point_polyline_distance(sb.camera.project(j[span, h, 0]), stroke.points).mean()
-        assert err(moved) < 0.035 < 0.07 < err(joints)
-    for h, frames in enumerate(key_frames(sb)):
-        np.testing.assert_allclose(moved[frames, h], keyed[frames, h], atol=1e-9)
-
-
-def test_a_stroke_keyed_only_at_its_start_is_walked_to_its_end(scene):
-    """The people stand still in the generated motion; their pelvis strokes (keys only at the
-    first frame) still take them from the strokes' first points to their last, going on evenly."""
-    clip, sb = scene
-    sb = replace(sb, keyposes=[k for k in sb.keyposes if k.frame == 0])
-    joints, offsets = consistent_skeleton(np.repeat(clip.joints[:1], len(clip.joints), axis=0))
-    moved = follow_paths(warp_to_keyposes(joints, offsets, sb), sb)
-    strokes = [t for t in sb.trajectories if t.joint == "pelvis"]
-    assert strokes
-    for stroke in strokes:
-        h = sb.agent_index(stroke.agent)
-        pelvis = sb.camera.project(moved[stroke.start:stroke.end + 1, h, 0])
-        assert np.linalg.norm(pelvis[-1] - stroke.points[-1]) < 0.04
-        steps = ground_steps(moved[stroke.start:stroke.end + 1, h, 0])
-        assert 0.25 < steps[:len(steps) // 2].sum() / steps.sum() < 0.75      # on the way all along
-
-
-def ground_steps(pelvis: np.ndarray) -> np.ndarray:
-    """How far (M-1,) a pelvis path (M, 3) goes over the ground from frame to frame."""
-    return np.linalg.norm(np.diff(pelvis[:, [0, 2]], axis=0), axis=-1)
-
-
-def test_a_stroke_ending_early_or_keyed_midway_is_walked_evenly_and_stays_at_its_end(scene):
-    """A person standing still in the generated motion, keyed at frames 0 and 40, with a pelvis
-    stroke over frames 0-80 of 120: walked to the stroke's end by frame 80, evenly from the key at
-    40 (no slide before the key, no rush after it), and standing there after frame 80."""
-    clip, sb = scene
-    stroke = next(t for t in sb.trajectories if t.joint == "pelvis")
-    h = sb.agent_index(stroke.agent)
-    stroke = replace(stroke, start=0, end=80)
-    keys = [k for k in sb.keyposes if k.agent == stroke.agent and k.frame == 0]
-    keys.append(replace(keys[0], frame=40))
-    sb = replace(sb, keyposes=keys, trajectories=[stroke])
-    joints, offsets = consistent_skeleton(np.repeat(clip.joints[:1], len(clip.joints), axis=0))
-    keyed = warp_to_keyposes(joints, offsets, sb)
-    moved = follow_paths(keyed, sb)
-    pelvis = sb.camera.project(moved[:, h, 0])
-    assert np.linalg.norm(pelvis[80] - stroke.points[-1]) < 0.04
-    assert np.abs(pelvis[80:] - pelvis[80]).max() < 0.02                      # it stays there
-    step = ground_steps(moved[40:81, h, 0])
-    assert 0.3 * np.median(step) < step.min() and step.max() < 1.5 * np.median(step)   # evenly after the key
-    np.testing.assert_allclose(moved[40, h], keyed[40, h], atol=1e-9)
 
 
 def test_finish_leaves_a_motion_that_already_matches_its_sketch_nearly_alone(scene):
