@@ -68,7 +68,7 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
     fixed, all_offsets = [], []
     for h in range(joints.shape[1]):
         offsets = fit_offsets(joints[:, h], iterations=1)  # one refit of the branching bones is enough here
-        scales = sketched_scales(offsets, storyboard, h) if storyboard is not None else dict.fromkeys(BODY_PARTS, 1.0)
+        scales = sketched_scales(offsets, joints[:, h], storyboard, h) if storyboard is not None else dict.fromkeys(BODY_PARTS, 1.0)
         root = joints[:, h, 0] * (1.0, scales["legs"], 1.0)
         offsets = offsets * scale_per_bone(scales)[:, None]
         rotations = steady_rotations(joints[:, h], root, inverse_kinematics(joints[:, h], offsets), offsets)

@@ -118,7 +118,7 @@ def _stroke_timing(path: StrokePath, seen: np.ndarray, span: np.ndarray, keys: l
                    fps: float, config: WarpConfig) -> np.ndarray:
     """Metres along the path (M,) to be at each frame of the span, for a pelvis seen at (M, 2)."""
     top = config.path_top_speed / fps / max(path.length[-1] / (PATH_SAMPLES - 1), 1e-9)   # samples a frame
-    come = path.along(seen, matched(seen, path.points, max(int(np.ceil(top)), 1), span[-1] in keys))
+    come = path.along(seen, matched(seen, path.points, int(np.clip(np.ceil(top), 1, PATH_SAMPLES)), span[-1] in keys))
     way = timed_way(come, path.length[-1], [i for i, f in enumerate(span) if f in keys], holding, fps, config)
     return smoothed_keeping_ends(way[:, None], config.way_smoothing)[:, 0]
 

@@ -81,24 +81,40 @@ BODY_PARTS = {
 }
 
 
-def sketched_scales(offsets: np.ndarray, storyboard: Storyboard, agent: int, quantile: float = 0.9,
-                    most: float = 1.1) -> dict[str, float]:
-    """How much larger than `offsets` (22, 3) the agent's sketched keyposes say each body part
-    is (BODY_PARTS), each in [1, most].
+MEASURING = 0.5   # a bone shown at less than this share of its length (pointing at the camera) measures nothing
 
-    A bone's sketched length is at most its true length (foreshortening only shortens), so the
-    long bones that lie nearly in the sketch plane tell the scale: a high quantile of sketched /
-    own length over the keyposes' bones of the part. A part only grows by this: a sketch cannot
-    say a body is smaller, since every bone may point at the camera. Nor much larger: people
-    built unlike the training bodies would be lifted off their feet between keyposes; 1.1
-    measured best on held-out synthesized and real storyboards alike."""
+
+def sketched_scales(offsets: np.ndarray, joints: np.ndarray, storyboard: Storyboard, agent: int,
+                    quantile: float = 0.5, most: float = 1.1) -> dict[str, float]:
+    """How much larger than `offsets` (22, 3) the agent's sketched keyposes say each body part
+    is (BODY_PARTS), each in [1, most]; `joints` (N, 22, 3) the agent's generated motion.
+
+    A bone's sketched length is its true length foreshortened as the bone points out of the
+    sketch plane; the generated pose at the key says how far it does (a standing leg seen from
+    20 degrees above shows 94% of its length: read as its length, the legs came out shorter
+    than the arms and a held key's planted feet beyond their reach), so each sketched bone over
+    its own length and its generated foreshortening measures the part; the median over the keys'
+    bones of the part is its scale. Bones the generated pose points nearly at the camera measure
+    nothing. A part only grows by this: a sketch cannot say a body is smaller, since every bone
+    may point at the camera. Nor much larger: people built unlike the training bodies would be
+    lifted off their feet between keyposes; 1.1 measured best on held-out synthesized and real
+    storyboards alike."""
     lengths = np.linalg.norm(offsets, axis=-1)
-    mine = [k for k in storyboard.keyposes if k.agent == storyboard.agents[agent].id]
+    camera = storyboard.camera
+    mine = [k for k in storyboard.keyposes if k.agent == storyboard.agents[agent].id and k.frame < len(joints)]
     scales = {}
     for part, (_, measured) in BODY_PARTS.items():
-        ratios = [np.linalg.norm(k.points[j] - k.points[PARENTS[j]]) / lengths[j]
-                  for k in mine for j in (JOINT_INDEX[name] for name in measured)
-                  if k.mask[j] and k.mask[PARENTS[j]] and lengths[j] > 1e-6]
+        ratios = []
+        for k in mine:
+            pose = joints[k.frame]
+            for j in (JOINT_INDEX[name] for name in measured):
+                p = PARENTS[j]
+                if not (k.mask[j] and k.mask[p] and lengths[j] > 1e-6):
+                    continue
+                seen = np.linalg.norm(camera.project(pose[j]) - camera.project(pose[p]))
+                shown = seen / max(np.linalg.norm(pose[j] - pose[p]), 1e-9)      # the generated foreshortening
+                if shown >= MEASURING:
+                    ratios.append(np.linalg.norm(k.points[j] - k.points[p]) / (lengths[j] * shown))
         scales[part] = float(np.clip(np.quantile(ratios, quantile), 1.0, most)) if ratios else 1.0
     return scales
 

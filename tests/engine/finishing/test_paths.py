@@ -98,3 +98,17 @@ def test_timed_way_keeps_a_pause_of_the_motion_and_walks_evenly_where_it_rushes(
     assert np.abs(timed_way(brisk, brisk[-1], [], np.zeros(61, bool), 20.0, config) - brisk).max() > 0.3
     held = timed_way(brisk, brisk[-1], [], np.arange(61) > 55, 20.0, config)          # holding a box: its pace
     np.testing.assert_allclose(held, brisk, atol=1e-9)
+
+
+def test_a_stroke_drawn_as_a_single_point_keeps_the_person_there(scene):
+    """A click on the canvas, not a drag: every point of the stroke is one; the person stays
+    over it, and nothing breaks."""
+    clip, sb = scene
+    stroke = next(t for t in sb.trajectories if t.joint == "pelvis")
+    dot = replace(stroke, points=np.repeat(stroke.points[:1], 5, axis=0))
+    sb = replace(sb, trajectories=[dot], keyposes=[])
+    joints, _ = consistent_skeleton(clip.joints.astype(float))
+    moved = follow_paths(joints, sb)
+    h = sb.agent_index(dot.agent)
+    assert np.isfinite(moved).all()
+    assert np.linalg.norm(sb.camera.project(moved[dot.start:dot.end + 1, h, 0]) - dot.points[0], axis=-1).max() < 0.06

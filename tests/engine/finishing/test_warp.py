@@ -47,7 +47,7 @@ def test_spread_is_exact_at_keys_linear_between_and_fades_outside():
 def test_sketched_scales_grow_a_body_the_sketch_shows_larger_by_at_most_a_tenth(scene, drawn, expected):
     clip, sb = scene
     offsets = fit_offsets(clip.joints[:, 0].astype(float), iterations=1) / drawn   # the model drew it smaller
-    assert sketched_scales(offsets, sb, 0) == pytest.approx(dict.fromkeys(BODY_PARTS, expected), abs=0.03)
+    assert sketched_scales(offsets, clip.joints[:, 0].astype(float), sb, 0) == pytest.approx(dict.fromkeys(BODY_PARTS, expected), abs=0.03)
 
 
 def test_arms_drawn_longer_grow_the_arms_and_leave_the_legs_and_the_pelvis_height(scene):
@@ -56,7 +56,7 @@ def test_arms_drawn_longer_grow_the_arms_and_leave_the_legs_and_the_pelvis_heigh
     clip, sb = scene
     own = fit_offsets(clip.joints[:, 0].astype(float), iterations=1)
     arms = scale_per_bone({"legs": 1.0, "arms": 1.3, "trunk": 1.0})
-    scales = sketched_scales(own / arms[:, None], sb, 0)                   # the model drew short arms
+    scales = sketched_scales(own / arms[:, None], clip.joints[:, 0].astype(float), sb, 0)   # drawn short arms
     assert scales["arms"] == pytest.approx(1.1, abs=0.01)
     assert scales["legs"] == pytest.approx(1.0, abs=0.03) and scales["trunk"] == pytest.approx(1.0, abs=0.03)
     joints = clip.joints.astype(float)
