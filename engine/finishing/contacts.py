@@ -31,7 +31,7 @@ from ..skeleton import ELBOWS, HANDS, JOINT_NAMES, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from ..synth.props import pose_array
-from ..synth.reach import UP, heading_of, steady_pole, two_bone_ik, yaw_matrix
+from ..synth.reach import UP, continuous_pole, heading_of, steady_pole, two_bone_ik, yaw_matrix
 from ..synth.trajectory import blend_yaw, smoothstep
 from .swivel import swivel_clear
 
@@ -434,7 +434,7 @@ def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboar
         axis = normalize(goal - shoulder)
         bend = elbow - shoulder
         bend = bend - np.sum(bend * axis, axis=-1, keepdims=True) * axis
-        pole = steady_pole(bend, -UP - forward)[moving]
+        pole = continuous_pole(steady_pole(bend, -UP - forward), axis)[moving]
         shoulder, elbow, wrist, goal = shoulder[moving], elbow[moving], wrist[moving], goal[moving]
         upper = np.linalg.norm(elbow - shoulder, axis=-1, keepdims=True)
         lower = np.linalg.norm(wrist - elbow, axis=-1, keepdims=True)

@@ -70,6 +70,24 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, upper: float, lower: float
     return middle, end
 
 
+def continuous_pole(pole: np.ndarray, axis: np.ndarray, carry_m: float = 0.03) -> np.ndarray:
+    """Poles (N, ..., 3) of two-bone chains whose root-to-end directions are `axis` (N, ..., 3),
+    kept on one side from frame to frame (axis 0): each frame's pole across its axis, plus
+    `carry_m` of the side the previous frame bent to. Where a pole's part across the axis
+    shrinks through zero (an arm reaching the way its fallback bend points), its side flipped
+    and the elbow jumped 20 cm in a frame; a chain bent well over `carry_m` keeps its own side."""
+    out = np.empty_like(pole)
+    previous = None
+    for t in range(len(pole)):
+        across = pole[t] - np.sum(pole[t] * axis[t], -1, keepdims=True) * axis[t]
+        if previous is not None:
+            kept = previous - np.sum(previous * axis[t], -1, keepdims=True) * axis[t]
+            across = across + carry_m * normalize(kept)
+        out[t] = across
+        previous = normalize(across)
+    return out
+
+
 def steady_pole(bend: np.ndarray, fallback: np.ndarray, sigma: float = 2.0, fallback_m: float = 0.02,
                 bent_m: float = 0.03) -> np.ndarray:
     """Where a two-bone chain's middle joint should bend, turning smoothly over frames (axis 0).
