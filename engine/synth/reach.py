@@ -76,16 +76,17 @@ def continuous_pole(pole: np.ndarray, axis: np.ndarray, carry_m: float = 0.03) -
     `carry_m` of the side the previous frame bent to. Where a pole's part across the axis
     shrinks through zero (an arm reaching the way its fallback bend points), its side flipped
     and the elbow jumped 20 cm in a frame; a chain bent well over `carry_m` keeps its own side."""
-    out = np.empty_like(pole)
-    previous = None
-    for t in range(len(pole)):
-        across = pole[t] - np.sum(pole[t] * axis[t], -1, keepdims=True) * axis[t]
-        if previous is not None:
-            kept = previous - np.sum(previous * axis[t], -1, keepdims=True) * axis[t]
-            across = across + carry_m * normalize(kept)
-        out[t] = across
-        previous = normalize(across)
-    return out
+    n = len(pole)
+    if n == 0:
+        return pole.copy()
+    axis = axis.reshape(n, -1, 3)
+    out = pole.reshape(n, -1, 3) - np.sum(pole.reshape(n, -1, 3) * axis, -1, keepdims=True) * axis
+    previous = out[0] / np.maximum(np.sqrt(np.sum(out[0] ** 2, -1, keepdims=True)), 1e-9)
+    for t in range(1, n):   # sequential: each frame's side follows the one before it
+        kept = previous - np.sum(previous * axis[t], -1, keepdims=True) * axis[t]
+        out[t] += carry_m * kept / np.maximum(np.sqrt(np.sum(kept ** 2, -1, keepdims=True)), 1e-9)
+        previous = out[t] / np.maximum(np.sqrt(np.sum(out[t] ** 2, -1, keepdims=True)), 1e-9)
+    return out.reshape(pole.shape)
 
 
 def steady_pole(bend: np.ndarray, fallback: np.ndarray, sigma: float = 2.0, fallback_m: float = 0.02,
