@@ -372,7 +372,8 @@ def _span_weight(n: int, start: int, end: int, blend: int) -> np.ndarray:
 def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboard: Storyboard,
                      config: ContactConfig) -> tuple[np.ndarray, np.ndarray]:
     """Where each wrist should be and how much: targets (N, H, 2, 3), weights (N, H, 2).
-    Outside a span the target stays where it was at the span's nearer end."""
+    After a span the target stays where it was at the span's end; before an object's span it is
+    the grip where it is then (before a partner's hand, where it is at the span's start)."""
     n, h = joints.shape[:2]
     wrists = joints[:, :, list(HANDS)]
     target, weight = np.zeros((n, h, 2, 3)), np.zeros((n, h, 2))
@@ -391,7 +392,10 @@ def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storybo
             if obj_anchors is None:
                 raise ValueError("the storyboard has object contacts but no object anchors were given")
             flat = storyboard.object_index(c.object) * k + c.anchor
-            put(a, s, obj_anchors.reshape(n, -1, 3)[frames, flat], w)
+            # Easing in, a hand reaches for the grip where it is then (a box the partner already
+            # carries moves on; held still at the span's start, it jerked 10 cm when the hold began).
+            reaching = np.minimum(np.arange(n), frames)
+            put(a, s, obj_anchors.reshape(n, -1, 3)[reaching, flat], w)
             continue
         b, t = storyboard.agent_index(c.other_agent), HAND_NAMES.index(c.other_hand)
         mid = 0.5 * (wrists[frames, a, s] + wrists[frames, b, t])

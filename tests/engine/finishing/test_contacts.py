@@ -272,3 +272,19 @@ def test_a_shared_hold_sits_within_every_holders_vertical_reach():
             rise = np.abs(anchors[span, c.anchor, 1] - joints[span, a, shoulder, 1])
             worst = max(worst, float(np.max(rise - config.grip_rise * config.reach * arm)))
         assert (worst < 0.02) == inside, worst
+
+
+def test_a_hand_easing_onto_a_moving_box_reaches_for_it_where_it_is(carry):
+    """A box the partner already carries: easing in before its own span, a hand reaches for the
+    grip where it is then, not where it will be at the span's start (it jerked 10 cm as the hold
+    began)."""
+    sb, joints, _, _, anchors, _ = carry
+    contact = max((c for c in sb.contacts if c.object is not None), key=lambda c: c.start)
+    n, h, side = len(joints), sb.agent_index(contact.agent), ("left", "right").index(contact.hand)
+    moving = anchors.copy()
+    drift = np.clip(np.arange(n) - (contact.start - 8), 0, None)[:, None, None, None] * np.array([0.05, 0, 0])
+    moving += drift                                                         # 5 cm a frame from 8 frames before
+    out = reach_contacts(joints, moving, sb, ContactConfig())
+    wrist = out[:, h, HANDS[side]]
+    steps = np.linalg.norm(np.diff(wrist[contact.start - 8:contact.start + 4], axis=0), axis=-1)
+    assert steps.max() < 0.095                                               # 10.1 cm held still
