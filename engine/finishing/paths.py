@@ -8,7 +8,8 @@ keyframes the person keeps the generated motion's pace along the stroke (a pause
 box stays a pause), stretched to meet the keys; where that pace rushes (the generated motion
 stood still, then hurried to catch up with a stroke it did not follow), the person goes on
 evenly instead. Held-out real dancers' pelvises were 32 cm off, most of it along the stroke; so
-matched and timed, 22 cm (synthesized scenes 12.4 -> 11.7 cm; evening out every interval, 19 cm).
+matched and timed, 22 cm, and synthesized scenes' 12.4 -> 11.7 cm (evening out every interval
+took those to 16.6 cm: their pauses are real).
 
 A 2D stroke does not give depth; the ground does: it is lifted to where the stroke's ray meets
 the pelvis height at which the lower foot touches the ground (or walked on the floor path itself

@@ -45,7 +45,8 @@ class WarpConfig:
                                   # keys: spread whole over a 66-frame walk, a posed figure's straight template
                                   # knee turned with the body and swung the knee 40 cm in a frame (20 frames
                                   # did as well for pops but moved the pelvis paths 1.3 cm further off)
-    path_smoothing: float = 2.5   # frames; Gaussian sigma of the per-frame path offsets
+    path_smoothing: float = 2.5   # frames; Gaussian sigma of the per-frame path offsets (4 cut a stroke's
+                                  # corners: a walk along it slowed to a halt where it turned back)
     heading_smoothing: float = 1.5  # frames; Gaussian sigma of the heading that a key's pose change turns
                                   # with (a real dancer's spin read off the hips turned 135 degrees in one
                                   # frame, and a spread pose change swung a wrist 40 cm with it)
