@@ -2,12 +2,14 @@
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from engine.finishing import consistent_skeleton
 from engine.finishing.keys import key_frames
 from engine.finishing.paths import follow_paths, matched, timed_way
 from engine.finishing.warp import WarpConfig, warp_to_keyposes
 from engine.geometry.polylines import point_polyline_distance
+from engine.storyboard import Trajectory, floor_path_points
 
 from .test_warp import disturbed, scene  # noqa: F401 (a fixture)
 
@@ -112,3 +114,27 @@ def test_a_stroke_drawn_as_a_single_point_keeps_the_person_there(scene):
     h = sb.agent_index(dot.agent)
     assert np.isfinite(moved).all()
     assert np.linalg.norm(sb.camera.project(moved[dot.start:dot.end + 1, h, 0]) - dot.points[0], axis=-1).max() < 0.06
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_any_stroke_an_artist_can_draw_is_walked_without_breaking(scene, seed):
+    """Strokes as the canvas makes them: a few points or many, over part of the clip or all of
+    it, on the floor plan or in the sketch plane, keyed inside, outside or not at all, drawn
+    back and forth over themselves: the motion stays finite, on its stroke's span ends and off
+    nothing else."""
+    clip, sb = scene
+    rng = np.random.default_rng(seed)
+    n = len(clip.joints)
+    start = int(rng.integers(0, n - 2))
+    end = int(rng.integers(start + 1, n))
+    count = int(rng.integers(2, 30))
+    floor = np.cumsum(rng.normal(0, 0.3, (count, 2)), axis=0) + clip.joints[start, 0, 0, [0, 2]]
+    stroke = Trajectory("A", "pelvis", start, end, floor_path_points(sb.camera, floor),
+                        floor if seed % 2 else None)
+    keys = [k for k in sb.keyposes if k.agent == "A"][: seed % 4]
+    sb = replace(sb, trajectories=[stroke], keyposes=keys + [k for k in sb.keyposes if k.agent != "A"])
+    joints, _ = consistent_skeleton(clip.joints.astype(float))
+    moved = follow_paths(joints, sb)
+    assert np.isfinite(moved).all()
+    np.testing.assert_allclose(moved[:, 1], joints[:, 1])                     # B has no stroke
+    np.testing.assert_allclose(moved[:, 0] - moved[:, 0, :1], joints[:, 0] - joints[:, 0, :1], atol=1e-9)  # A moves whole
