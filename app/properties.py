@@ -65,12 +65,14 @@ class PropertiesPanel(QWidget):
         self.ease_in.setToolTip("The motion slows into this keypose")
         self.ease_out = QCheckBox("Ease out")
         self.ease_out.setToolTip("The motion starts slowly out of this keypose (after its hold)")
-        key_timing = QHBoxLayout()
-        for w in (self.hold, self.ease_in, self.ease_out):
-            key_timing.addWidget(w)
+        easing = QHBoxLayout()      # a row of its own: the panel stays narrow on a laptop screen
+        easing.addWidget(self.ease_in)
+        easing.addWidget(self.ease_out)
+        easing.addStretch(1)
         form.addRow("Agent", self.agent)
         form.addRow("Joint", self.joint)
-        form.addRow("Key", key_timing)
+        form.addRow("Key", self.hold)
+        form.addRow("", easing)
         layout.addWidget(box)
 
         box = QGroupBox("Object")
@@ -79,14 +81,12 @@ class PropertiesPanel(QWidget):
         self.object_type = QComboBox()
         self.object_type.addItems(OBJECT_TYPES)
         self.size = [self._spin(0.05, 5.0, 0.05, 2, " m") for _ in range(3)]
-        sizes = QHBoxLayout()
-        for spin in self.size:
-            sizes.addWidget(spin)
         self.shape = QComboBox()
         self.shape.addItems(OBJECT_SHAPES)
         form.addRow("Object", self.object)
         form.addRow("Type", self.object_type)
-        form.addRow("W \u00d7 H \u00d7 D", sizes)
+        for spin, name in zip(self.size, ("Width", "Height", "Depth")):   # a row each: the panel stays narrow
+            form.addRow(name, spin)
         form.addRow("Draw as", self.shape)
         layout.addWidget(box)
 

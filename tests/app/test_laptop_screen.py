@@ -88,3 +88,12 @@ def test_generate_stays_on_the_toolbar_of_a_narrow_window(qtbot, make_window):
     window.resize(LAPTOP_ROOM)
     qtbot.waitUntil(lambda: window.act_mirror.iconText() == "Mirror Keypose")
     assert bar.widgetForAction(generate).isVisible() and window.act_undo.iconText() == "Undo"
+
+
+def test_the_properties_panel_leaves_the_canvas_room_on_a_small_window(make_window):
+    """Its widest rows (a key's hold with its easing, the object's three sizes) are laid out so
+    that the panel can be narrowed to about a quarter of a 1280 px window."""
+    window = make_window()
+    window.open_file("resources/examples/carry_table.json")
+    assert window.properties.minimumSizeHint().width() <= 320
+
