@@ -177,11 +177,13 @@ class Storyboard:
             chi[t.start:t.end + 1, self.agent_index(t.agent), JOINT_INDEX[t.joint]] = True
         return chi
 
-    def holding(self) -> np.ndarray:
-        """(N, H, 2) bool: True where hand s (HANDS order) of human h is in a contact at frame n."""
+    def holding(self, objects_only: bool = False) -> np.ndarray:
+        """(N, H, 2) bool: True where hand s (HANDS order) of human h is in a contact at frame n
+        (an object contact, with `objects_only`)."""
         held = np.zeros((self.length, len(self.agents), len(HANDS)), dtype=bool)
         for c in self.contacts:
-            held[c.start:c.end + 1, self.agent_index(c.agent), HANDS.index(c.hand)] = True
+            if c.object is not None or not objects_only:
+                held[c.start:c.end + 1, self.agent_index(c.agent), HANDS.index(c.hand)] = True
         return held
 
     # ---- file format ---------------------------------------------------------------------

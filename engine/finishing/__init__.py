@@ -41,7 +41,7 @@ from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .steady import SteadyConfig, steady_body
 from .timing import retime_to_keys, with_hold_ends
-from .paths import follow_paths
+from .paths import PathConfig, follow_paths
 from .warp import BODY_PARTS, WarpConfig, scale_per_bone, sketched_scales, warp_to_keyposes
 
 TUNED_FPS = 20.0   # the configs' durations (their DURATIONS fields) are frames at this rate
@@ -54,6 +54,7 @@ class FinishConfig:
     contacts: bool = True
     feet: bool = True
     warp: WarpConfig = field(default_factory=WarpConfig)
+    path: PathConfig = field(default_factory=PathConfig)
     contact: ContactConfig = field(default_factory=ContactConfig)
     inferred: InferConfig = field(default_factory=InferConfig)
     foot: FeetConfig = field(default_factory=FeetConfig)
@@ -90,7 +91,7 @@ def lasting_as_long(config, fps: float):
 def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig()) -> MotionClip:
     """The clip (people in the storyboard's agent order) with its constraints made exact."""
     config = replace(config, **{part: lasting_as_long(getattr(config, part), clip.fps)
-                                for part in ("warp", "contact", "foot", "limbs", "steady", "inferred")})
+                                for part in ("warp", "path", "contact", "foot", "limbs", "steady", "inferred")})
     if config.contacts:
         storyboard = with_generated_contacts(clip, storyboard, config.inferred)
     joints = retime_to_keys(np.asarray(clip.joints, float), storyboard)
@@ -99,7 +100,7 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
     if config.keyposes:
         joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)
     if config.paths:
-        joints = follow_paths(joints, storyboard, config.warp, clip.fps)
+        joints = follow_paths(joints, storyboard, config.path, clip.fps)
     if config.contacts and clip.obj_pose is not None and storyboard.objects:   # before the feet plant
         joints = step_within_reach(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
     if config.feet:  # before the object: hands that hold it must not move after it is placed

@@ -2,7 +2,7 @@
 point at its first frame to its last at its last, through the keyposes the warp placed.
 
 Where along the stroke the generated person is, frame by frame, is a monotone match of the pelvis
-to the stroke (nearest points, in order, at most `path_top_speed`): a stroke that loops or
+to the stroke (nearest points, in order, at most `PathConfig.top_speed`): a stroke that loops or
 doubles back (a dancer's) is not jumped across, as the nearest point alone would. Between
 keyframes the person keeps the generated motion's pace along the stroke (a pause to pick up a
 box stays a pause), stretched to meet the keys; where that pace rushes (the generated motion
@@ -19,7 +19,8 @@ Joint arrays are (N, H, 22, 3) in metres.
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, minimum_filter1d, uniform_filter1d
@@ -29,10 +30,30 @@ from ..geometry.polylines import resample_polyline
 from ..skeleton import JOINT_INDEX
 from ..storyboard import Storyboard, Trajectory
 from .keys import key_frames, spread
-from .warp import LEVEL, WarpConfig, grounding_height
+from .warp import LEVEL, grounding_height
 
 PELVIS = JOINT_INDEX["pelvis"]
 PATH_SAMPLES = 200   # points a stroke is resampled to when matching a motion to it
+
+
+@dataclass
+class PathConfig:
+    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "smoothing", "speed_window", "way_smoothing")
+    # (frames at TUNED_FPS)
+    falloff: int = 12             # frames over which the keyframes' hold on the offsets fades out beyond them
+    smoothing: float = 2.5        # frames; Gaussian sigma of the per-frame offsets (4 cut a stroke's
+                                  # corners: a walk along it slowed to a halt where it turned back)
+    passes: int = 2               # smoothing pulls points off the stroke a little; place them again
+    tolerance: float = 0.03       # m in the sketch plane; closer than this to its stroke, a pelvis is
+                                  # left alone (a hand-drawn stroke wobbles; the walk should not)
+    top_speed: float = 4.0        # m/s; the fastest a pelvis is taken to go along its stroke
+    rush_speeds: tuple[float, float] = (2.5, 3.5)   # m/s; a generated pace along a stroke faster than the
+                                  # first (over speed_window frames) is blended towards even progress, wholly
+                                  # at the second ((2, 3) did as well on real dancers, worse on synthesized
+                                  # scenes)
+    speed_window: int = 5         # frames
+    way_smoothing: float = 1.5    # frames; Gaussian sigma of the progress along a stroke
+    foot_height: float = 0.02     # m; height of the foot joint standing on the ground (as FeetConfig's)
 
 
 class StrokePath(NamedTuple):
@@ -81,7 +102,7 @@ class StrokePath(NamedTuple):
         return camera.unproject_to_height(at, height)
 
 
-def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig = WarpConfig(),
+def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: PathConfig = PathConfig(),
                  fps: float = 20.0) -> np.ndarray:
     """People whose pelvis has a stroke walk it on time with the lower foot on the ground; the
     keyposes stay where they are, the offsets are smoothed, and beyond the stroke's span its ends'
@@ -98,39 +119,30 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: WarpConfig 
             continue
         keys = key_frames(storyboard)[h]
         way = None
-        for _ in range(config.path_passes):   # smoothing pulls points off the stroke a little
+        for _ in range(config.passes):   # smoothing pulls points off the stroke a little
             pelvis = out[span, h, PELVIS]
             height = pelvis[:, 1] + grounding_height(out[span, h], config.foot_height)
-            height = smoothed_keeping_ends(height[:, None], config.path_smoothing)[:, 0]   # the lower foot changes
+            height = smoothed_keeping_ends(height[:, None], config.smoothing)[:, 0]   # the lower foot changes
             path = StrokePath.of(stroke, cam, float(np.mean(height)))
             if way is None:   # metres along the stroke at each frame of its span
-                way = _stroke_timing(path, path.seen(pelvis, cam), span, keys, _holding(storyboard, stroke.agent, span),
-                                     fps, config)
+                holding = storyboard.holding(objects_only=True)[span, h].any(-1)
+                way = _stroke_timing(path, path.seen(pelvis, cam), span, keys, holding, fps, config)
             target = path.place(way, height, cam)
             apart = np.linalg.norm(path.seen(target, cam) - path.seen(pelvis, cam), axis=-1, keepdims=True)
             # a hand-drawn stroke wobbles; the walk should not
-            shift = (target - pelvis) * np.clip(apart / config.path_tolerance - 1.0, 0.0, 1.0)
-            shift = smoothed_keeping_ends(shift, config.path_smoothing)
+            shift = (target - pelvis) * np.clip(apart / config.tolerance - 1.0, 0.0, 1.0)
+            shift = smoothed_keeping_ends(shift, config.smoothing)
             out[:, h] += _beyond_span(n, span, keys, shift, config.falloff)[:, None, :]
     return out
 
 
 def _stroke_timing(path: StrokePath, seen: np.ndarray, span: np.ndarray, keys: list[int], holding: np.ndarray,
-                   fps: float, config: WarpConfig) -> np.ndarray:
+                   fps: float, config: PathConfig) -> np.ndarray:
     """Metres along the path (M,) to be at each frame of the span, for a pelvis seen at (M, 2)."""
-    top = config.path_top_speed / fps / max(path.length[-1] / (PATH_SAMPLES - 1), 1e-9)   # samples a frame
+    top = config.top_speed / fps / max(path.length[-1] / (PATH_SAMPLES - 1), 1e-9)   # samples a frame
     come = path.along(seen, matched(seen, path.points, int(np.clip(np.ceil(top), 1, PATH_SAMPLES)), span[-1] in keys))
     way = timed_way(come, path.length[-1], [i for i, f in enumerate(span) if f in keys], holding, fps, config)
     return smoothed_keeping_ends(way[:, None], config.way_smoothing)[:, 0]
-
-
-def _holding(storyboard: Storyboard, agent: str, span: np.ndarray) -> np.ndarray:
-    """(M,) whether the agent holds an object at each frame of the span, by the storyboard."""
-    out = np.zeros(len(span), bool)
-    for c in storyboard.contacts:
-        if c.object is not None and c.agent == agent:
-            out |= (span >= c.start) & (span <= c.end)
-    return out
 
 
 def matched(points: np.ndarray, path: np.ndarray, most_step: int, to_end: bool = True) -> np.ndarray:
@@ -155,7 +167,7 @@ def matched(points: np.ndarray, path: np.ndarray, most_step: int, to_end: bool =
 
 
 def timed_way(come: np.ndarray, end: float, keys: list[int], holding: np.ndarray, fps: float,
-              config: WarpConfig) -> np.ndarray:
+              config: PathConfig) -> np.ndarray:
     """Metres along the stroke (M,) to be at each frame of its span: `come` (M,) where the motion
     is, kept at the span's keyframes (indices `keys`), from 0 at its first frame to `end` m (the
     stroke's length) at its last unless keyed there; between them its pace, stretched

@@ -37,29 +37,16 @@ LEVEL = 0.05  # |vertical part of the viewing direction| below which the camera 
 
 @dataclass
 class WarpConfig:
-    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "pose_falloff", "path_smoothing", "heading_smoothing",
-                                            "speed_window", "way_smoothing")
+    DURATIONS: ClassVar[tuple[str, ...]] = ("falloff", "pose_falloff", "heading_smoothing")
     # (frames at TUNED_FPS)
     falloff: int = 12             # frames over which an offset fades in before the first key / out after the last
     pose_falloff: int = 60        # frames over which a key's pose change (not its place) fades out between
                                   # keys: spread whole over a 66-frame walk, a posed figure's straight template
                                   # knee turned with the body and swung the knee 40 cm in a frame (20 frames
                                   # did as well for pops but moved the pelvis paths 1.3 cm further off)
-    path_smoothing: float = 2.5   # frames; Gaussian sigma of the per-frame path offsets (4 cut a stroke's
-                                  # corners: a walk along it slowed to a halt where it turned back)
     heading_smoothing: float = 1.5  # frames; Gaussian sigma of the heading that a key's pose change turns
                                   # with (a real dancer's spin read off the hips turned 135 degrees in one
                                   # frame, and a spread pose change swung a wrist 40 cm with it)
-    path_passes: int = 2          # smoothing pulls points off the stroke a little; project again
-    path_tolerance: float = 0.03  # m in the sketch plane; closer than this to its stroke, a pelvis is
-                                  # left alone (a hand-drawn stroke wobbles; the walk should not)
-    path_top_speed: float = 4.0   # m/s; the fastest a pelvis is taken to go along its stroke (paths.py)
-    rush_speeds: tuple[float, float] = (2.5, 3.5)   # m/s; a generated pace along a stroke faster than the
-                                  # first (over speed_window frames) is blended towards even progress, wholly
-                                  # at the second (paths.py; (2, 3) did as well on real dancers, worse on
-                                  # synthesized scenes)
-    speed_window: int = 5         # frames
-    way_smoothing: float = 1.5    # frames; Gaussian sigma of the progress along a stroke
     foot_height: float = 0.02     # m; height of the foot joint standing on the ground (as FeetConfig's)
     # Keypose depth fit (solve_keypose); weights of its residuals (m), 1 for a bone's depth change.
     stance_tolerance: float = 0.08  # m; a generated foot this close to the lower one's height stands

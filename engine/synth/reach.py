@@ -81,11 +81,11 @@ def continuous_pole(pole: np.ndarray, axis: np.ndarray, carry_m: float = 0.03) -
         return pole.copy()
     axis = axis.reshape(n, -1, 3)
     out = pole.reshape(n, -1, 3) - np.sum(pole.reshape(n, -1, 3) * axis, -1, keepdims=True) * axis
-    previous = out[0] / np.maximum(np.sqrt(np.sum(out[0] ** 2, -1, keepdims=True)), 1e-9)
+    previous = normalize(out[0])
     for t in range(1, n):   # sequential: each frame's side follows the one before it
         kept = previous - np.sum(previous * axis[t], -1, keepdims=True) * axis[t]
-        out[t] += carry_m * kept / np.maximum(np.sqrt(np.sum(kept ** 2, -1, keepdims=True)), 1e-9)
-        previous = out[t] / np.maximum(np.sqrt(np.sum(out[t] ** 2, -1, keepdims=True)), 1e-9)
+        out[t] += carry_m * normalize(kept)
+        previous = normalize(out[t])
     return out.reshape(pole.shape)
 
 

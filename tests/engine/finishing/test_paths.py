@@ -6,8 +6,8 @@ import pytest
 
 from engine.finishing import consistent_skeleton
 from engine.finishing.keys import key_frames
-from engine.finishing.paths import follow_paths, matched, timed_way
-from engine.finishing.warp import WarpConfig, warp_to_keyposes
+from engine.finishing.paths import PathConfig, follow_paths, matched, timed_way
+from engine.finishing.warp import warp_to_keyposes
 from engine.geometry.polylines import point_polyline_distance
 from engine.storyboard import Trajectory, floor_path_points
 
@@ -87,7 +87,7 @@ def test_matched_walks_a_looping_path_in_order_where_the_nearest_point_jumps_acr
 
 
 def test_timed_way_keeps_a_pause_of_the_motion_and_walks_evenly_where_it_rushes():
-    config = WarpConfig()
+    config = PathConfig()
     paused = np.concatenate([np.linspace(0, 1, 20), np.full(20, 1.0), np.linspace(1, 2, 21)[1:]])  # 1.0 m/s
     way = timed_way(paused, 2.0, [], np.zeros(60, bool), 20.0, config)
     np.testing.assert_allclose(way, paused, atol=1e-9)                     # the pause stays
