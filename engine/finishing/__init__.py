@@ -66,16 +66,15 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
     """Joints (N, H, 22, 3) -> (the same motion on one rigid skeleton per person, its bone
     offsets (H, 22, 3)). With a storyboard, body parts its keyposes show larger are scaled up
     (the pelvis height with the legs): the decoder draws bodies towards the average size."""
-    fixed, all_offsets = [], []
-    for h in range(joints.shape[1]):
-        offsets = fit_offsets(joints[:, h], iterations=1)  # one refit of the branching bones is enough here
-        scales = sketched_scales(offsets, joints[:, h], storyboard, h) if storyboard is not None else dict.fromkeys(BODY_PARTS, 1.0)
-        root = joints[:, h, 0] * (1.0, scales["legs"], 1.0)
-        offsets = offsets * scale_per_bone(scales)[:, None]
-        rotations = steady_rotations(joints[:, h], root, inverse_kinematics(joints[:, h], offsets), offsets)
-        fixed.append(forward_kinematics(root, rotations, offsets))
-        all_offsets.append(offsets)
-    return np.stack(fixed, 1), np.stack(all_offsets)
+    offsets = fit_offsets(joints, iterations=1)   # (H, 22, 3); one refit of the branching bones is enough here
+    people = range(joints.shape[1])
+    scales = [sketched_scales(offsets[h], joints[:, h], storyboard, h) if storyboard is not None
+              else dict.fromkeys(BODY_PARTS, 1.0) for h in people]
+    root = joints[:, :, 0] * np.array([(1.0, s["legs"], 1.0) for s in scales])
+    offsets = offsets * np.stack([scale_per_bone(s) for s in scales])[..., None]
+    rotations = inverse_kinematics(joints, offsets)
+    rotations = np.stack([steady_rotations(joints[:, h], root[:, h], rotations[:, h], offsets[h]) for h in people], 1)
+    return forward_kinematics(root, rotations, offsets), offsets
 
 
 def lasting_as_long(config, fps: float):

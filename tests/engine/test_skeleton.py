@@ -90,3 +90,15 @@ def test_scene_flatten_round_trip(h, anchors, n, data):
     assert np.array_equal(j2, joints) and np.array_equal(r2, r6)
     if anchors:
         assert np.array_equal(p2, pose) and all(np.array_equal(x, y) for x, y in zip(a2, anc))
+
+
+def test_fit_offsets_fits_each_person_of_a_scene_apart():
+    """(N, H, 22, 3) gives each person the body (N, 22, 3) alone would."""
+    rng = np.random.default_rng(3)
+    bodies = [REST_OFFSETS * 0.9, REST_OFFSETS * 1.1]
+    joints = np.stack([forward_kinematics(rng.normal(size=(6, 3)), rot.axis_angle_to_matrix(0.4 * rng.normal(size=(6, 22, 3))), body)
+                       for body in bodies], 1)
+    together = fit_offsets(joints)
+    for h in range(2):
+        np.testing.assert_allclose(together[h], fit_offsets(joints[:, h]), atol=1e-12)
+        np.testing.assert_allclose(together[h], bodies[h], atol=1e-6)
