@@ -9,8 +9,12 @@ asked for: a Whittaker smoother with hard constraints, one banded solve (`smooth
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy.linalg import solveh_banded
+
+from ..synth.trajectory import smoothstep
 
 HELD_WEIGHT = 1e8     # a held frame's weight against the smoothness: held to far below a millimetre
 
@@ -47,4 +51,26 @@ def spike(path: np.ndarray) -> np.ndarray:
     the first and last frames 0."""
     out = np.zeros(path.shape[:-1])
     out[1:-1] = np.linalg.norm(path[1:-1] - 0.5 * (path[:-2] + path[2:]), axis=-1)
+    return out
+
+
+def ease_frames(distance: float, pop: float, shortest: int, longest: int) -> int:
+    """Frames (in [shortest, longest]) a smoothstep over `distance` needs to spike at most `pop`:
+    sampled over f + 1 steps its largest second difference is 6 / (f + 1)^2 of the distance, and
+    a spike is half of that."""
+    return int(np.clip(np.ceil(np.sqrt(3.0 * distance / pop)) - 1, shortest, max(longest, shortest)))
+
+
+def ease_jumps(values: np.ndarray, at: list[int], frames_for: Callable[[float], int]) -> np.ndarray:
+    """values (N, D) whose jump into each frame c of `at` is eased out over the frames_for(size of
+    the jump) frames after it: from c on they start where the frames before were heading (their
+    last step continued) and reach their own by a smoothstep. -> (N, D)."""
+    out = np.array(values, float)
+    for c in at:
+        if not 1 <= c < len(out):
+            continue
+        jump = out[c - 1] + (out[c - 1] - out[c - 2] if c >= 2 else 0.0) - out[c]
+        length = frames_for(float(np.linalg.norm(jump)))
+        after = np.arange(c, min(c + length + 1, len(out)))
+        out[after] += smoothstep(1.0 - (after - c) / (length + 1))[:, None] * jump
     return out

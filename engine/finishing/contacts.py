@@ -33,6 +33,7 @@ from ..storyboard import Storyboard
 from ..synth.props import pose_array
 from ..synth.reach import UP, continuous_pole, heading_of, steady_pole, two_bone_ik, yaw_matrix
 from ..synth.trajectory import blend_yaw, smoothstep
+from .blend import ease_frames, ease_jumps
 from .swivel import swivel_clear
 
 GRAVITY = 9.81  # m/s^2
@@ -44,9 +45,11 @@ BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
 
 @dataclass
 class ContactConfig:
-    DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "lift_frames", "smooth_sigma", "reach_smoothing",
-                                            "frames_per_metre", "swivel_sigma", "clear_frames")
+    DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "most_handover_frames", "lift_frames", "smooth_sigma",
+                                            "reach_smoothing", "frames_per_metre", "swivel_sigma", "clear_frames")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
+    handover_pop: float = 0.02     # m a grip may spike where a held object eases out the turn that a hand
+    most_handover_frames: int = 16  # joining or leaving the hold makes (over blend_frames to these frames)
     lift_frames: int = 6           # frames a resting object eases into the holding hands' fit (and,
                                    # at least, a released one slides to its sketched landing place)
     smooth_sigma: float = 1.5      # frames: Gaussian smoothing of a held object's fitted path
@@ -201,6 +204,19 @@ def _carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma
     return yaw
 
 
+def _eased_handovers(yaw: np.ndarray, held: np.ndarray, grips: np.ndarray, config: ContactConfig) -> np.ndarray:
+    """A held object's fitted heading (N,) (unwrapped; held, grips as in _hold_one) with its
+    jumps where a hand joins or leaves the hold eased out: the heading of two people's hands is
+    not one person's chest's, and a partner letting go of a box turned it 69 degrees in a frame.
+    (Its position's jumps are left: eased, the grips went out of the new holder's reach.)"""
+    changes = [c for c in range(1, len(yaw)) if held[c].any() and held[c - 1].any() and (held[c] != held[c - 1]).any()]
+    if not changes:
+        return yaw
+    radius = np.max(np.linalg.norm(grips[..., [0, 2]], axis=-1))   # how far a turn moves a grip
+    return ease_jumps(yaw[:, None], changes, lambda turn: ease_frames(
+        radius * turn, config.handover_pop, config.blend_frames, config.most_handover_frames))[:, 0]
+
+
 def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
               spec: ObjectSpec, fps: float, config: ContactConfig, rests: list[np.ndarray | None],
               camera: StoryboardCamera) -> np.ndarray:
@@ -229,6 +245,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
     fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding,
                                 config.clear_iterations)
+    fit_yaw = _eased_handovers(np.unwrap(fit_yaw), held, grips, config)
 
     # Holds fewer frames apart than a lift takes are one, and so is a hold that starts or ends that
     # close to the clip's ends: the artist's spans are a few frames off, not a drop and a pick-up

@@ -288,3 +288,21 @@ def test_a_hand_easing_onto_a_moving_box_reaches_for_it_where_it_is(carry):
     wrist = out[:, h, HANDS[side]]
     steps = np.linalg.norm(np.diff(wrist[contact.start - 8:contact.start + 4], axis=0), axis=-1)
     assert steps.max() < 0.095                                               # 10.1 cm held still
+
+
+@pytest.mark.parametrize("seed", [3, 5])
+def test_a_box_handed_over_turns_smoothly_as_hands_join_and_leave(seed):
+    """Each pair of hands says a little differently which way the box faces (here the taker's
+    hands turned a quarter about the box against the giver's): where hands join or leave the
+    hold the box eases from one heading to the next instead of turning in a few frames."""
+    sb, joints, pose = scrambled("handoff", seed)
+    taker = [c for c in sb.contacts if c.agent == sb.agents[1].id]
+    start, end = min(c.start for c in taker), max(c.end for c in taker)
+    centre = joints[:, 1, list(HANDS)].mean(axis=1, keepdims=True)         # (N, 1, 3)
+    turned = joints.copy()
+    turned[start:end + 1, 1, list(HANDS)] = centre[start:end + 1] + np.einsum(
+        "ij,nkj->nki", yaw_matrix(np.radians(90.0)), joints[start:end + 1, 1, list(HANDS)] - centre[start:end + 1])
+    yaw = np.unwrap(_yaw_of(hold_object(turned, pose, sb)[:, 0, 3:]))
+    grip = np.max(np.linalg.norm(sb.objects[0].spec.anchors[:, [0, 2]], axis=-1))
+    jolt = grip * np.abs(yaw[2:] - 2 * yaw[1:-1] + yaw[:-2]) / 2        # a grip's spike off its neighbours
+    assert jolt.max() < 0.009                                        # 1.3 cm, eased at once

@@ -1,0 +1,20 @@
+"""Finishing, blend: corrections and jumps eased over time without a jolt."""
+import numpy as np
+
+from engine.finishing.blend import ease_frames, ease_jumps, spike
+
+
+def test_an_eased_jump_continues_the_motion_then_reaches_its_own():
+    frames = np.arange(40, dtype=float)
+    values = np.where(frames < 20, 0.01 * frames, 0.01 * frames + 0.5)[:, None]   # a 50 cm jump at 20
+    length = ease_frames(0.5, 0.02, 3, 30)
+    eased = ease_jumps(values, [20], lambda jump: ease_frames(jump, 0.02, 3, 30))
+    assert np.array_equal(eased[:20], values[:20])                     # before the jump: as it was
+    assert np.array_equal(eased[20 + length + 1:], values[20 + length + 1:])   # after the ease: its own
+    assert abs(eased[20, 0] - 0.20) < 1e-12                            # it goes on at its pace
+    assert spike(eased).max() <= 0.02 + 1e-9 and spike(values).max() > 0.2
+
+
+def test_ease_frames_grow_with_the_way_within_their_bounds():
+    assert ease_frames(0.0, 0.02, 4, 16) == 4 and ease_frames(10.0, 0.02, 4, 16) == 16
+    assert ease_frames(0.1, 0.02, 1, 16) < ease_frames(0.4, 0.02, 1, 16)
