@@ -97,7 +97,7 @@ def _walk(goals: list[np.ndarray], pose: np.ndarray, a: int, b: int, config: Fee
                + np.linalg.norm(pose[:, ANKLES[side]] - pose[:, KNEES[side]], axis=-1))
         ankle = foot - (pose[:, FEET[side]] - pose[:, ANKLES[side]])
         hip = pose[:, HIPS[side]] - [0.0, config.max_crouch, 0.0]
-        if (np.linalg.norm(ankle - hip, axis=-1) > config.leg_extension * leg).any():
+        if (np.linalg.norm(ankle - hip, axis=-1) > config.plant_reach * leg).any():
             return None
     return feet
 

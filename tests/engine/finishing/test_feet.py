@@ -169,9 +169,13 @@ def test_a_body_too_tall_for_its_planted_legs_crouches_until_the_feet_reach_the_
 
 
 def test_good_motion_is_left_alone(clean):
+    """But for a body lowered by a centimetre at most where a stance leg is straighter than
+    leg_extension allows (the synthesizer's stand at 97-98%)."""
     for name, joints in clean.items():
         out = finish(joints)
-        assert np.linalg.norm(out - joints, axis=-1).max() < 0.003, name
+        moved = np.linalg.norm(out - joints, axis=-1)
+        assert moved[:, :, list(FEET)].max() < 0.003, name     # the feet stand where they stood
+        assert moved.max() < 0.015, name                      # the body a centimetre lower, knees bent to it
 
 
 @pytest.mark.parametrize("n, h", [(1, 1), (1, 2), (2, 1), (7, 1)])
