@@ -310,11 +310,14 @@ def _crouch(pose: np.ndarray, goals: list[np.ndarray], config: FeetConfig) -> np
     return gaussian_filter1d(held, config.crouch_sigma, mode="nearest")
 
 
+STRAIGHTEST = 0.99   # share of a leg's length that reach_with_leg extends it to at most
+
+
 def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.ndarray:
     """Poses (M, 22, 3) with one leg (side 0 left, 1 right) re-solved from its fixed hip by exact
     two-bone IK so that the foot joint, riding rigidly on the ankle, reaches foot_goal (M, 3);
-    a goal out of reach straightens the leg towards it -> (M, 22, 3). The M poses are frames in
-    time order: the knee bends the way it bends now (off the old hip-ankle line, so a foot
+    a goal beyond STRAIGHTEST of the leg's reach gets the leg reaching towards it -> (M, 22, 3).
+    The M poses are frames in time order: the knee bends the way it bends now (off the old hip-ankle line, so a foot
     planted ahead cannot flip it backwards), towards the facing as the leg straightens, turning
     smoothly over the frames (steady_pole)."""
     hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
@@ -330,6 +333,11 @@ def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.nd
     # A knee never bends backwards: a nearly straight leg's bend is noise, and followed, it bent
     # the knee back for a few frames, then flipped it forward (a 42 cm pop).
     pole -= 2.0 * np.minimum(np.sum(pole * facing, axis=-1, keepdims=True), 0.0) * facing
-    out[:, knee], out[:, ankle] = two_bone_ik(poses[:, hip], foot_goal - foot_offset, upper, lower, pole)
+    # Nor does it straighten fully: near straight a knee swings far for a small change of reach
+    # (one came back from straight to reach its lifting foot 23 cm in a frame).
+    reach = foot_goal - foot_offset - poses[:, hip]
+    length = np.maximum(np.linalg.norm(reach, axis=-1, keepdims=True), 1e-9)
+    reach *= np.minimum(1.0, STRAIGHTEST * (upper + lower) / length)
+    out[:, knee], out[:, ankle] = two_bone_ik(poses[:, hip], poses[:, hip] + reach, upper, lower, pole)
     out[:, toe] = out[:, ankle] + foot_offset
     return out

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from engine.finishing import lasting_as_long
-from engine.finishing.feet import (HIPS, KNEES, FeetConfig, _foot_goal, _with_room_to_step, lock_feet, reach_with_leg,
-                                  settle_on_ground, stance_intervals)
+from engine.finishing.feet import (HIPS, KNEES, STRAIGHTEST, FeetConfig, _foot_goal, _with_room_to_step, lock_feet,
+                                  reach_with_leg, settle_on_ground, stance_intervals)
 from engine.metrics import foot_skate_ratio
 from engine.skeleton import ANKLES, FEET, bone_lengths, rest_pose
 from engine.synth import SCENARIOS, synthesize
@@ -222,3 +222,22 @@ def test_a_nearly_straight_leg_never_bends_its_knee_backwards():
     bend -= np.sum(bend * line, -1, keepdims=True) / np.sum(line * line, -1, keepdims=True) * line
     assert (bend @ facing > 0.05).all()
     np.testing.assert_allclose(out[:, foot], goal, atol=1e-6)
+
+
+def test_a_leg_never_straightens_so_its_knee_never_swings_fast():
+    """A foot goal drawn in from beyond the leg's reach to within it, 1% of the leg a frame: the
+    leg stops short of straight, and the knee moves a few cm a frame, not the 6 cm of the
+    last percent before straight."""
+    n = 11
+    poses = np.repeat(rest_pose()[None], n, 0)
+    hip, knee, ankle, foot = HIPS[0], KNEES[0], ANKLES[0], FEET[0]
+    leg = np.linalg.norm(poses[0, knee] - poses[0, hip]) + np.linalg.norm(poses[0, ankle] - poses[0, knee])
+    down = (poses[0, ankle] - poses[0, hip]) / np.linalg.norm(poses[0, ankle] - poses[0, hip])
+    share = np.linspace(1.05, 0.95, n)[:, None]
+    goal = poses[:, hip] + share * leg * down + (poses[:, foot] - poses[:, ankle])
+    out = reach_with_leg(poses, 0, goal)
+    knee_steps = np.linalg.norm(np.diff(out[:, knee], axis=0), axis=-1)
+    assert knee_steps.max() < 0.035
+    reach = np.linalg.norm(out[:, ankle] - out[:, hip], axis=-1) / leg
+    assert reach.max() <= STRAIGHTEST + 1e-9
+    np.testing.assert_allclose(out[share[:, 0] <= STRAIGHTEST, foot], goal[share[:, 0] <= STRAIGHTEST], atol=1e-6)
