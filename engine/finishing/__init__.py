@@ -20,7 +20,7 @@ that keep each person's bone lengths:
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
    bone lengths (limbs.py);
 6. the whole body smoothed where it still pops, what the stages above made exact held
-   (steady.py).
+   (steady.py); hands that this puts back into an object pushed out again and smoothed once more.
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
 """
 from __future__ import annotations
@@ -111,9 +111,16 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
     if config.contacts:
         joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact, kw.get("obj_pose"))
-    if config.contacts and "obj_pose" in kw:
-        joints = clear_hands(joints, kw["obj_pose"].astype(float), storyboard, config.contact.clear_frames)
+    obj_pose = kw["obj_pose"].astype(float) if config.contacts and "obj_pose" in kw else None
+    if obj_pose is not None:
+        joints = clear_hands(joints, obj_pose, storyboard, config.contact.clear_frames)
     joints = steady_body(steady_limbs(joints, config.limbs), offsets, storyboard, config.steady)
+    if obj_pose is not None:
+        # The steadying smooths the pops that a push out of an object makes, and so can put the
+        # hand back in (a wrist 14 cm deep before its hold): pushed out again, steadied once more.
+        cleared = clear_hands(joints, obj_pose, storyboard, config.contact.clear_frames)
+        if not np.array_equal(cleared, joints):
+            joints = steady_body(cleared, offsets, storyboard, config.steady)
     rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
                    bone_offsets=offsets.astype(np.float32), **kw)

@@ -1,5 +1,8 @@
 """Hands that never go through the objects (engine/finishing/clearance.py)."""
+from dataclasses import replace
+
 import numpy as np
+import pytest
 
 from engine.finishing import finish
 from engine.finishing.clearance import clear_hands
@@ -41,3 +44,23 @@ def test_a_free_hand_is_pushed_out_and_a_holding_hand_is_left_on_its_grip():
     np.testing.assert_allclose(bone_lengths(out), bone_lengths(sunk), atol=1e-9)
     moved = np.any(out != sunk, axis=-1)
     assert not np.delete(moved, [JOINT_INDEX[j] for j in ("l_elbow", "r_elbow", "l_wrist", "r_wrist")], axis=2).any()
+
+
+@pytest.mark.parametrize("scenario", ["lift_adjust", "let_go"])
+def test_the_finished_motion_keeps_a_free_hand_out_of_the_box(scenario):
+    """A generated right hand that darts into the box before its hold: the push out of it pops,
+    and the steadying that smooths the pop must not put the hand back in."""
+    clip = synthesize(scenario, 0, fps=20)
+    sb = sketchify(clip, 4, 0.0, 0)
+    hold = next(c for c in sb.contacts if c.hand == "right")
+    person = sb.agent_index(hold.agent)
+    joints, pose, spec = clip.joints.astype(float), clip.obj_pose.astype(float), sb.objects[0].spec
+    frames = np.arange(hold.start - 6, hold.start - 2)
+    joints[frames, person, WRIST] = pose[frames, 0, :3] + (0.0, spec.size[1] / 2, 0.0)   # at its centre
+    done = finish(replace(clip, joints=joints.astype(np.float32)), sb)
+    free = np.ones(len(joints), bool)
+    for c in sb.contacts:
+        if c.hand == "right" and sb.agent_index(c.agent) == person:
+            free[c.start:c.end + 1] = False
+    depth = wrist_depth(done.joints.astype(float), done.obj_pose.astype(float), spec, person)
+    assert depth[free].max() <= -0.02 + 1e-3                       # within a millimetre of its radius
