@@ -27,7 +27,7 @@ from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QWidget
 
 from engine.facing import turned
-from engine.finishing.contacts import sketched_rest
+from engine.finishing.held import sketched_rest
 from engine.skeleton import FEET
 from engine.synth.reach import heading_of
 from engine.storyboard import FLOOR_PATH_HEIGHT, Keypose, Storyboard, Trajectory, floor_path_points

@@ -12,9 +12,9 @@ that keep each person's bone lengths:
 3. feet standing on the ground, planted while in stance (where a keypose in the stance has the
    foot), stepping between plants (one foot at a time: walk.py), the body lowering where it
    stands too tall for its planted legs (feet.py);
-4. the object as a rigid body that moves only in the hands that hold it, and the arms reaching
-   its grips (or the partner's hand) over every contact span (contacts.py); a holder the grip is
-   beyond arm's reach of steps towards it first, before the feet are planted; for an object the
+4. the object as a rigid body that moves only in the hands that hold it (held.py), and the arms
+   reaching its grips (or the partner's hand) over every contact span (contacts.py); a holder the
+   grip is beyond arm's reach of steps towards it first, before the feet are planted (held.py); for an object the
    storyboard gives no contact, the holds are the generated motion's (inferred.py); hands out of
    a hold pushed out of the objects they sink into (clearance.py);
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
@@ -34,8 +34,9 @@ from ..geometry.rotations import matrix_to_6d
 from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from .clearance import clear_hands
-from .contacts import ContactConfig, hold_object, object_anchors, reach_contacts, step_within_reach
+from .contacts import ContactConfig, object_anchors, reach_contacts
 from .feet import FeetConfig, lock_feet, settle_on_ground
+from .held import hold_object, step_within_reach
 from .inferred import InferConfig, with_generated_contacts
 from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations

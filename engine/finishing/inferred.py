@@ -17,7 +17,8 @@ from ..clip import MotionClip
 from ..skeleton import HANDS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Contact, Storyboard
-from .contacts import object_anchors, true_spans
+from .contacts import object_anchors
+from .held import true_spans
 
 
 @dataclass

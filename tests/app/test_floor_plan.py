@@ -12,7 +12,7 @@ from app import commands as cmd
 from app.document import Document
 from app.floor_plan import FloorPlan, standing_place
 from engine.facing import depth_of, facing, lift
-from engine.finishing.contacts import sketched_rest
+from engine.finishing.held import sketched_rest
 from engine.poses import library_pose
 from engine.storyboard import floor_path_points
 

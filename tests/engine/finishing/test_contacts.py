@@ -1,11 +1,12 @@
-"""Finishing, contacts: held objects follow the hands and rest on the ground otherwise; wrists
-reach their grips (or the other person's hand) by exact-length arm IK."""
+"""Finishing, contacts and held objects (contacts.py, held.py, tested together: a hold is judged
+by where the hands end up): held objects follow the hands and rest on the ground otherwise;
+wrists reach their grips (or the other person's hand) by exact-length arm IK."""
 import numpy as np
 import pytest
 
 from engine.controls import build_controls
-from engine.finishing.contacts import (ContactConfig, _yaw_of, hold_object, object_anchors, reach_contacts,
-                                       step_within_reach)
+from engine.finishing.contacts import ContactConfig, object_anchors, reach_contacts
+from engine.finishing.held import _within_reach_across, _yaw_of, hold_object, step_within_reach
 from engine.metrics import anchor_error
 from engine.objects import ObjectSpec
 from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
@@ -306,3 +307,26 @@ def test_a_box_handed_over_turns_smoothly_as_hands_join_and_leave(seed):
     grip = np.max(np.linalg.norm(sb.objects[0].spec.anchors[:, [0, 2]], axis=-1))
     jolt = grip * np.abs(yaw[2:] - 2 * yaw[1:-1] + yaw[:-2]) / 2        # a grip's spike off its neighbours
     assert jolt.max() < 0.009                                        # 1.3 cm, eased at once
+
+
+def test_a_shared_hold_moves_across_towards_a_holder_it_is_beyond_the_reach_of():
+    """Two people 0.8 m apart holding a box between them, fitted (as to the mean of the wrists)
+    15 cm nearer one of them: 6 cm beyond the other's reach while the near one's arms bend. It
+    moves across until both reach it."""
+    n, config = 4, ContactConfig()
+    near = rest_pose() * [-1.0, 1.0, -1.0] + [0.0, 0.0, 0.4]           # turned to face the other
+    joints = np.repeat(np.stack([rest_pose() + [0.0, 0.0, -0.4], near])[None], n, 0)   # (N, 2, 22, 3)
+    grips = np.tile([[-0.2, 0.0, -0.2], [0.2, 0.0, -0.2], [0.2, 0.0, 0.2], [-0.2, 0.0, 0.2]], (n, 1, 1))
+    held = np.ones((n, 4), bool)
+    fitted = np.tile([0.0, 1.3, 0.15], (n, 1))
+
+    def beyond(pos):   # (N, 4): how far each grip lies beyond the reach of its shoulder
+        shoulders = joints[:, :, [ARMS[0][0], ARMS[1][0]]].reshape(n, 4, 3)
+        arms = sum(np.linalg.norm(joints[:, :, [ARMS[0][k + 1], ARMS[1][k + 1]]] - joints[:, :, [ARMS[0][k], ARMS[1][k]]],
+                                  axis=-1) for k in range(2)).reshape(n, 4)
+        return np.linalg.norm(pos[:, None] + grips - shoulders, axis=-1) - config.reach * arms
+
+    assert beyond(fitted)[:, :2].min() > 0.05 and beyond(fitted)[:, 2:].max() < -0.05
+    moved = _within_reach_across(fitted, np.zeros(n), joints, grips, held, config)
+    assert beyond(moved).max() < 0.005
+    np.testing.assert_allclose(moved[:, [0, 1]], fitted[:, [0, 1]])     # across only, along the line

@@ -1,0 +1,348 @@
+"""Held objects: each object a rigid body that moves only in the hands that hold it.
+
+`hold_object` rebuilds each object's pose from the storyboard's contacts and the finished
+joints (N frames, H people, 22 joints, world metres, Y up): an upright yaw + translation fit of
+its grips to the holding wrists, turning with the holder's chest while one person alone holds
+it, eased where hands join or leave the hold, at a height every holder's arm reaches and
+moved across towards a holder it is beyond the reach of, out of the holders' bodies; resting on
+the ground before, between and after holds, where the sketch puts it (holds a few frames from
+each other or from the clip's ends are one, where the sketch does not put it down: an artist's
+spans are a few frames off). contacts.py then puts the hands on its grips.
+
+`step_within_reach` comes first: it moves a holder whose grip is beyond arm's reach towards it
+(two people carrying one box drift apart along their timing-free paths; an arm cannot close
+that gap).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from ..body import BONES, body_points
+from ..camera import StoryboardCamera
+from ..geometry.rotations import normalize, quat_to_matrix
+from ..objects import ObjectSpec, world_to_local
+from ..skeleton import ELBOWS, HANDS, JOINT_NAMES, SHOULDERS
+from ..storyboard import HANDS as HAND_NAMES
+from ..storyboard import Storyboard
+from ..synth.props import pose_array
+from ..synth.reach import heading_of, yaw_matrix
+from ..synth.trajectory import blend_yaw, smoothstep
+from .blend import ease_frames, ease_jumps
+from .contacts import ContactConfig, anchor_table, arm_lengths, forward_of, object_anchors, span_weight
+
+GRAVITY = 9.81  # m/s^2
+
+
+_ARM = [*ELBOWS, *HANDS]
+# engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
+
+
+BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
+                        + [child not in _ARM for _, child in BONES])
+
+
+def _yaw_of(quat: np.ndarray) -> np.ndarray:
+    """Heading of a pose's local +X about +Y: (..., 4) wxyz -> (...)."""
+    x_axis = quat_to_matrix(quat)[..., :, 0]
+    return np.arctan2(-x_axis[..., 2], x_axis[..., 0])
+
+
+def _grounded(position: np.ndarray, config: ContactConfig) -> np.ndarray:
+    """The same horizontal place (3,), resting on the ground."""
+    return np.array([position[0], config.rest_height, position[2]])
+
+
+def true_spans(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Inclusive [start, end] frame spans where mask (N,) is True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
+
+
+def _fit_yaw(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray,
+             min_spread: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame, the heading that best turns the local grips onto the holding wrists (weighted
+    upright Procrustes). Upright because a yaw-only fit stays defined with both hands on one end
+    and carried boxes and tables stay level. wrists, grips (N, P, 3); held (N, P) bool.
+    Returns yaw (N,) and where it is defined (N,): two or more grips spread apart."""
+    w = held[..., None]
+    count = np.maximum(w.sum(axis=1, keepdims=True), 1)
+    p = w * (wrists - np.sum(w * wrists, axis=1, keepdims=True) / count)
+    a = grips - np.sum(w * grips, axis=1, keepdims=True) / count
+    # yaw_matrix turns (x, z) into (c x + s z, -s x + c z); maximise sum p . R a over the angle.
+    sin = np.sum(p[..., 0] * a[..., 2] - p[..., 2] * a[..., 0], axis=1)
+    cos = np.sum(p[..., 0] * a[..., 0] + p[..., 2] * a[..., 2], axis=1)
+    return np.arctan2(sin, cos), np.hypot(sin, cos) > min_spread
+
+
+def _fit_position(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """Object origin (N, 3) that puts the mean held grip, turned by yaw (N,), on the mean wrist."""
+    w = held[..., None]
+    count = np.maximum(w.sum(axis=1), 1)
+    turned = np.einsum("nij,nj->ni", yaw_matrix(yaw), np.sum(w * grips, axis=1))
+    return (np.sum(w * wrists, axis=1) - turned) / count
+
+
+def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints: np.ndarray,
+                      holding: np.ndarray, iterations: int) -> np.ndarray:
+    """Push a held object (pos (N, 3), yaw (N,)) out in front of each holder (joints
+    (N, H, 22, 3), holding (N, H) bool) until no body sphere but the arms' is inside it: decoded
+    hands often hang by the hips, and an object fitted to them would sit in the pelvis. Pushes
+    from holders facing each other cancel (there is no room between them). Returns pos (N, 3)."""
+    n = len(pos)
+    points, radii = body_points(joints)
+    points, radii = points[:, :, BODY_SPHERES], radii[BODY_SPHERES]   # (N, H, S, 3), (S,)
+    away = forward_of(joints)                                           # (N, H, 3)
+    for _ in range(iterations):
+        local = world_to_local(points.reshape(n, -1, 3), pose_array(pos, yaw)).reshape(points.shape)
+        depth = np.max(spec.penetration_local(local, radii), axis=-1)  # (N, H)
+        pos = pos + np.sum(np.where(holding, depth, 0)[..., None] * away, axis=1)
+    return pos
+
+
+def _within_vertical_reach(height: np.ndarray, joints: np.ndarray, grips: np.ndarray, held: np.ndarray,
+                           config: ContactConfig) -> np.ndarray:
+    """A held object's origin height (N,) moved into the band where every held grip lies within
+    `grip_rise` of the reach above or below its holder's shoulder (the middle of the band when
+    the holders' bands do not overlap): the mean of a standing and a crouching holder's wrists
+    would otherwise put the grips out of both their reaches. joints (N, H, 22, 3); grips, held
+    as in _hold_one (N, 2H, 3) local, (N, 2H)."""
+    n, h = joints.shape[:2]
+    rise = config.grip_rise * config.reach * arm_lengths(joints).reshape(n, 2 * h)
+    base = joints[:, :, list(SHOULDERS), 1].reshape(n, 2 * h) - grips[..., 1]   # origin height, grip at the shoulder
+    band = held.any(axis=1)                                    # elsewhere the band is the height itself
+    low = np.where(band, np.max(np.where(held, base - rise, -np.inf), axis=1), height)
+    high = np.where(band, np.min(np.where(held, base + rise, np.inf), axis=1), height)
+    return np.where(low <= high, np.clip(height, low, high), (low + high) / 2)
+
+
+def _within_reach_across(pos: np.ndarray, yaw: np.ndarray, joints: np.ndarray, grips: np.ndarray, held: np.ndarray,
+                         config: ContactConfig, iterations: int = 6) -> np.ndarray:
+    """A held object's origin (N, 3), turned by yaw (N,), moved across (horizontally) towards the
+    holders whose held grips lie beyond `reach` of their shoulders, by the mean of how far those
+    lie beyond: the mean of the wrists put one holder's grips out of reach while the other's arms
+    were bent. Pulls from the two ends of a shared object cancel where both are short (it stays
+    between them). joints (N, H, 22, 3); grips, held as in _hold_one (N, 2H, 3) local, (N, 2H)."""
+    n, h = joints.shape[:2]
+    shoulders = joints[:, :, list(SHOULDERS)].reshape(n, 2 * h, 3)
+    reach = config.reach * arm_lengths(joints).reshape(n, 2 * h)
+    turned = np.einsum("nij,nkj->nki", yaw_matrix(yaw), grips)                 # (N, 2H, 3)
+    pos = pos.copy()
+    for _ in range(iterations):
+        to_shoulder = shoulders - pos[:, None] - turned                          # grip -> shoulder
+        beyond = np.where(held, np.maximum(np.linalg.norm(to_shoulder, axis=-1) - reach, 0.0), 0.0)
+        count = np.maximum(np.count_nonzero(beyond, axis=1), 1)[:, None]
+        pos += np.sum(beyond[..., None] * normalize(to_shoulder * (1.0, 0.0, 1.0)), axis=1) / count
+    return pos
+
+
+def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | None = None) -> np.ndarray | None:
+    """Where object o rests on the ground over frames [first, last] according to its sketch (3,),
+    or None when nothing sketched falls there. An orthographic sketch gives a grounded object's
+    place exactly: each object key's silhouette centre lies on the ray through the object's centre
+    (half its height up), and an object path's end points are its base's projection at the
+    path's first and last frames. The cues in range are averaged (hand-drawn ones wobble)."""
+    obj = storyboard.objects[o]
+    last = storyboard.length - 1 if last is None else last
+    half = obj.spec.size[1] / 2
+    cam = storyboard.camera
+    places = [cam.unproject_to_height((k.outline.min(axis=0) + k.outline.max(axis=0)) / 2, half) - (0.0, half, 0.0)
+              for k in storyboard.object_keys if k.object == obj.id and first <= k.frame <= last]
+    for path in (p for p in storyboard.object_paths if p.object == obj.id):
+        places += [cam.unproject_to_height(path.points[i], 0.0)
+                   for i, frame in ((0, path.start), (-1, path.end)) if first <= frame <= last]
+    return np.mean(places, axis=0) if places else None
+
+
+def _carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma: float) -> np.ndarray:
+    """A held object's heading (N,) turning with its holder's chest while one person alone holds it
+    (holding (N, H) bool; joints (N, H, 22, 3)), at the heading the fit gives it on average there:
+    a yaw fitted to one person's two wrists spun the object a full turn in ten frames as the wrists
+    crossed. The chest's heading is smoothed over `sigma` frames."""
+    yaw = np.unwrap(yaw)
+    chest = gaussian_filter1d(np.unwrap(heading_of(forward_of(joints)), axis=0), sigma, axis=0, mode="nearest")  # (N, H)
+    holder = np.where(holding.sum(axis=1) == 1, np.argmax(holding, axis=1), -1)   # (N,) -1: none or several
+    runs = np.flatnonzero(np.diff(np.concatenate([[-2], holder, [-2]])))           # where the holder changes
+    for start, stop in zip(runs[:-1], runs[1:]):
+        person = holder[start]
+        if person >= 0:
+            offset = yaw[start:stop] - chest[start:stop, person]
+            yaw[start:stop] = chest[start:stop, person] + np.arctan2(np.mean(np.sin(offset)), np.mean(np.cos(offset)))
+    return yaw
+
+
+def _eased_handovers(yaw: np.ndarray, held: np.ndarray, grips: np.ndarray, config: ContactConfig) -> np.ndarray:
+    """A held object's fitted heading (N,) (unwrapped; held, grips as in _hold_one) with its
+    jumps where a hand joins or leaves the hold eased out: the heading of two people's hands is
+    not one person's chest's, and a partner letting go of a box turned it 69 degrees in a frame.
+    (Its position's jumps are left: eased, the grips went out of the new holder's reach.)"""
+    changes = [c for c in range(1, len(yaw)) if held[c].any() and held[c - 1].any() and (held[c] != held[c - 1]).any()]
+    if not changes:
+        return yaw
+    radius = np.max(np.linalg.norm(grips[..., [0, 2]], axis=-1))   # how far a turn moves a grip
+    return ease_jumps(yaw[:, None], changes, lambda turn: ease_frames(
+        radius * turn, config.handover_pop, config.blend_frames, config.most_handover_frames))[:, 0]
+
+
+def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
+              spec: ObjectSpec, fps: float, config: ContactConfig, rests: list[np.ndarray | None],
+              camera: StoryboardCamera) -> np.ndarray:
+    """One object's pose (N, 7) from joints (N, H, 22, 3), the local grip each hand holds
+    (N, 2H, 3) where held (N, 2H), the decoded pose (N, 7) and its sketched resting places, one
+    (or None) per gap around the hold spans (see hold_object), drawn through `camera`."""
+    n, h = joints.shape[:2]
+    wrists = joints[:, :, list(HANDS)].reshape(n, 2 * h, 3)
+    decoded_yaw = _yaw_of(decoded[:, 3:])
+    still_yaw = np.arctan2(np.mean(np.sin(decoded_yaw)), np.mean(np.cos(decoded_yaw)))
+    spans = true_spans(held.any(axis=1))
+    if not spans:  # never held: a still object where it was sketched (else decoded), on the ground
+        place = rests[0] if rests[0] is not None else np.median(decoded[:, :3], axis=0)
+        return pose_array(np.tile(_grounded(place, config), (n, 1)), np.full(n, still_yaw))
+
+    fit_yaw, defined = _fit_yaw(wrists, grips, held, config.min_spread)
+    # One hand cannot turn the object: keep the last defined yaw (before any, the first one).
+    if defined.any():
+        last = np.maximum.accumulate(np.where(defined, np.arange(n), -1))
+        fit_yaw = fit_yaw[np.where(last >= 0, last, np.argmax(defined))]
+    else:
+        fit_yaw = np.full(n, still_yaw)
+    holding = held.reshape(n, h, 2).any(axis=-1)                                 # (N, H)
+    fit_yaw = _carried_yaw(fit_yaw, joints, holding, config.smooth_sigma)
+    fit_pos = _fit_position(wrists, grips, held, fit_yaw)
+    fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
+    fit_pos = _within_reach_across(fit_pos, fit_yaw, joints, grips, held, config)
+    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding,
+                                config.clear_iterations)
+    fit_yaw = _eased_handovers(np.unwrap(fit_yaw), held, grips, config)
+
+    # Holds fewer frames apart than a lift takes are one, and so is a hold that starts or ends that
+    # close to the clip's ends: the artist's spans are a few frames off, not a drop and a pick-up
+    # (a box drawn in the hands one frame before its hold, read as resting on the floor 1.1 m
+    # away, rose into them in six frames). Not where the sketch puts it down elsewhere.
+    centre = np.array([0.0, spec.size[1] / 2, 0.0])
+
+    def in_hands(rest: np.ndarray | None, *frames: int) -> bool:
+        """Nothing sketched in a gap, or drawn where the hands hold it at one of its ends."""
+        return rest is None or min(np.linalg.norm(camera.project(rest + centre) - camera.project(fit_pos[f] + centre))
+                                   for f in frames) < max(spec.size)
+
+    stretches, landings = [], []
+    for k, ((start, end), landing) in enumerate(zip(spans, rests[1:])):
+        if stretches and start - stretches[-1][1] - 1 < config.lift_frames and in_hands(rests[k], stretches[-1][1], start):
+            stretches[-1][1], landings[-1] = end, landing
+        else:
+            stretches.append([start, end])
+            landings.append(landing)
+    if stretches[0][0] < config.lift_frames and in_hands(rests[0], spans[0][0]):
+        stretches[0][0] = 0
+    if n - 1 - stretches[-1][1] < config.lift_frames and in_hands(rests[-1], spans[-1][1]):
+        stretches[-1][1] = n - 1
+    carried = np.zeros(n, bool)
+    for start, end in stretches:
+        carried[start:end + 1] = True
+    fitted, frames, fit_yaw = held.any(axis=1), np.arange(n), np.unwrap(fit_yaw)
+    for axis in range(3):   # carried across the gaps at the pace it was carried, held still at the ends
+        fit_pos[carried & ~fitted, axis] = np.interp(frames[carried & ~fitted], frames[fitted], fit_pos[fitted, axis])
+    fit_yaw[carried & ~fitted] = np.interp(frames[carried & ~fitted], frames[fitted], fit_yaw[fitted])
+
+    pos, yaw = np.empty((n, 3)), np.empty(n)
+    first = stretches[0][0]
+    # Before the first hold it rests where it was sketched, else where it is picked up.
+    pos[:first] = _grounded(rests[0] if rests[0] is not None else fit_pos[first], config)
+    yaw[:first] = fit_yaw[first]
+    for (start, end), landing in zip(stretches, landings):
+        held_pos = gaussian_filter1d(fit_pos[start:end + 1], config.smooth_sigma, axis=0, mode="nearest")
+        held_yaw = gaussian_filter1d(fit_yaw[start:end + 1], config.smooth_sigma, mode="nearest")
+        held_pos[:, 1] = np.maximum(held_pos[:, 1], config.rest_height)  # never through the floor
+        if start > 0:  # lifted from where it lay over a few frames, not popped into the hands
+            w = smoothstep(np.arange(end - start + 1) / max(config.lift_frames, 1))
+            held_pos = pos[start - 1] + w[:, None] * (held_pos - pos[start - 1])
+            held_yaw = blend_yaw(yaw[start - 1], held_yaw, w)
+        pos[start:end + 1], yaw[start:end + 1] = held_pos, held_yaw
+        # Released, it drops under gravity to the ground and rests there until the next hold (or
+        # the end), sliding on its way to where the sketch puts it down.
+        t = np.arange(1, n - end) / fps
+        pos[end + 1:] = held_pos[-1]
+        pos[end + 1:, 1] = np.maximum(held_pos[-1, 1] - 0.5 * GRAVITY * t ** 2, config.rest_height)
+        if landing is not None:
+            fall = max(np.sqrt(2 * max(held_pos[-1, 1] - config.rest_height, 0.0) / GRAVITY) * fps, config.lift_frames)
+            w = smoothstep(np.arange(1, n - end) / fall)[:, None] * (1.0, 0.0, 1.0)
+            pos[end + 1:] += w * (landing - pos[end + 1:])
+        yaw[end + 1:] = held_yaw[-1]
+    return pose_array(pos, yaw)
+
+
+def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,
+                config: ContactConfig = ContactConfig()) -> np.ndarray:
+    """Object poses that follow the storyboard's holding hands and otherwise rest on the ground.
+
+    joints (N, H, 22, 3) in the storyboard's agent order; obj_pose (N, O, 7) decoded poses in its
+    object order (only used for objects nobody holds). Returns (N, O, 7) upright poses.
+    """
+    joints, obj_pose = np.asarray(joints, float), np.asarray(obj_pose, float)
+    n, h = joints.shape[:2]
+    table = anchor_table(storyboard)
+    out = np.empty_like(obj_pose)
+    for o in range(obj_pose.shape[1]):
+        held = np.zeros((n, 2 * h), bool)
+        grips = np.zeros((n, 2 * h, 3))
+        for c in storyboard.contacts:
+            if c.object is None or storyboard.object_index(c.object) != o:
+                continue
+            hand = 2 * storyboard.agent_index(c.agent) + HAND_NAMES.index(c.hand)
+            held[c.start:c.end + 1, hand] = True
+            grips[c.start:c.end + 1, hand] = table[o, c.anchor]
+        bounds = [-1, *(f for span in true_spans(held.any(axis=1)) for f in span), n]   # gaps between the spans
+        rests = [sketched_rest(storyboard, o, a + 1, b - 1) for a, b in zip(bounds[::2], bounds[1::2])]
+        out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
+                              storyboard.fps, config, rests, storyboard.camera)
+    return out
+
+
+def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,
+                      config: ContactConfig = ContactConfig()) -> np.ndarray:
+    """People moved (whole bodies, horizontally) until each grip they hold, on the object as
+    hold_object fits it to their hands now, lies within `config.reach` of the straight arm from
+    the shoulder. The move eases in and out over `blend_frames` around each hold and is zero on
+    the person's sketched keyframes, where the sketch says where they stand; away from them it
+    grows by at most a metre per `frames_per_metre` frames (a hold drawn right after a key far
+    from the object lunged a carrier 76 cm to it and back in a third of a second).
+    joints (N, H, 22, 3), obj_pose (N, O, 7) decoded -> joints (N, H, 22, 3)."""
+    joints = np.asarray(joints, float).copy()
+    n, h = joints.shape[:2]
+    grips = [(c, storyboard.agent_index(c.agent), HAND_NAMES.index(c.hand)) for c in storyboard.contacts
+             if c.object is not None]
+    if not grips:
+        return joints
+    k = anchor_table(storyboard).shape[1]
+    frames = np.arange(n)
+    room = np.full((n, h), np.inf)  # how far (m) a person may have moved: 0 on their keyframes
+    for a, agent in enumerate(storyboard.agents):
+        keys = np.array([key.frame for key in storyboard.keyposes if key.agent == agent.id])
+        if len(keys):
+            room[:, a] = np.min(np.abs(frames[:, None] - keys[None]), axis=1) / config.frames_per_metre
+    # The object where the hands put it now; refitting it to moved hands would carry it away
+    # with the person stepping towards it.
+    anchors = object_anchors(hold_object(joints, obj_pose, storyboard, config), storyboard).reshape(n, -1, 3)
+    arms = arm_lengths(joints)                                   # whole-body steps keep them
+    start, moved = joints, np.zeros((n, h, 3))
+    for _ in range(config.reach_passes):
+        need, weight = np.zeros((n, h, 3)), np.zeros((n, h))
+        for c, a, side in grips:
+            shoulder, arm = joints[:, a, SHOULDERS[side]], arms[:, a, side]
+            reach = anchors[np.clip(frames, c.start, c.end), storyboard.object_index(c.object) * k + c.anchor] - shoulder
+            across = reach * (1.0, 0.0, 1.0)
+            # The horizontal distance at which the grip is `reach` of the arm away (0 when it is
+            # farther than that below or above the shoulder: then stand right by it).
+            allowed = np.sqrt(np.maximum((config.reach * arm) ** 2 - reach[:, 1] ** 2, 0.0))
+            distance = np.linalg.norm(across, axis=-1)
+            short = across * (np.maximum(distance - allowed, 0.0) / np.maximum(distance, 1e-9))[:, None]
+            w = span_weight(n, c.start, c.end, config.blend_frames) * (distance > allowed)
+            need[:, a] += w[:, None] * short
+            weight[:, a] += w
+        step = need / np.maximum(weight, 1.0)[..., None]          # the short hands' shortfalls averaged
+        moved += gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
+        length = np.maximum(np.linalg.norm(moved, axis=-1), 1e-9)
+        moved *= np.minimum(1.0, room / length)[..., None]
+        joints = start + moved[:, :, None]
+    return joints
