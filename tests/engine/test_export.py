@@ -18,7 +18,7 @@ from engine.export import (add_export_arguments, export_bvh_dir, export_gltf, ex
 from engine.geometry.rotations import axis_angle_to_matrix, matrix_to_6d, quat_to_matrix
 from engine.io.bvh import read_bvh
 from engine.objects import ObjectSpec, local_to_world
-from engine.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_PELVIS_HEIGHT, forward_kinematics
+from engine.skeleton import JOINT_NAMES, PARENTS, REST_PELVIS_HEIGHT, forward_kinematics
 
 FRAMES = 30
 

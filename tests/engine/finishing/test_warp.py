@@ -1,6 +1,4 @@
-"""Motion warping onto keyposes and pelvis paths (engine/finishing/warp.py) and the finishing pass."""
-from dataclasses import replace
-
+"""Motion warping onto keyposes (engine/finishing/warp.py) and the finishing pass."""
 import numpy as np
 import pytest
 from scipy.ndimage import maximum_filter1d
@@ -8,11 +6,10 @@ from scipy.ndimage import maximum_filter1d
 from engine.bench.animator import pop
 from engine.controls import build_controls
 from engine.finishing import consistent_skeleton, finish
-from engine.finishing.keys import key_frames, spread
+from engine.finishing.keys import spread
 from engine.finishing.limbs import LIMBS
 from engine.finishing.steady import SteadyConfig, frame_pops
 from engine.finishing.warp import BODY_PARTS, scale_per_bone, sketched_scales, solve_keypose, warp_to_keyposes
-from engine.geometry.polylines import point_polyline_distance
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.metrics import keypose_errors_2d
 from engine.skeleton import bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
