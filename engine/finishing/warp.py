@@ -189,6 +189,7 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
     folds the legs up off the ground (a carrier crawled through the let_go example)."""
     out = joints.copy()
     n = len(joints)
+    warped = {}                                      # person -> (root (N, 3), target (N, 22, 3), key frames)
     for h, agent in enumerate(storyboard.agents):
         keys = sorted((k for k in storyboard.keyposes if k.agent == agent.id and k.mask.any()),
                       key=lambda k: k.frame)
@@ -206,11 +207,17 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         local = moved @ turn[frames]                                             # world -> body frame
         root = joints[:, h, PELVIS] + spread(n, frames, posed[:, PELVIS] - joints[frames, h, PELVIS], config.falloff)
         pose = spread(n, frames, local, config.falloff) * closeness_to_keys(n, frames, config.pose_falloff)[:, None, None]
-        target = root[:, None] + body + pose @ np.swapaxes(turn, -1, -2)
-        out[:, h] = forward_kinematics(root, inverse_kinematics(target, offsets[h]), offsets[h])
+        warped[h] = (root, root[:, None] + body + pose @ np.swapaxes(turn, -1, -2), frames)
+    if not warped:
+        return out
+    people = list(warped)                            # the refit, all people at once
+    root, target = (np.stack([warped[h][i] for h in people], 1) for i in (0, 1))
+    out[:, people] = forward_kinematics(root, inverse_kinematics(target, offsets[people]), offsets[people])
+    for h in people:
         # The refit moved the feet (a keypose's solved bones are not quite the skeleton's): around
         # the keys the legs reach for the warped feet. Further out the refit's own legs stay
         # (reaching all along made the steps between keys less natural: FID 0.27 -> 0.40).
+        target, frames = warped[h][1], warped[h][2]
         near = closeness_to_keys(n, frames, config.falloff)[:, None]
         for side, foot in enumerate(FEET):
             out[:, h] = reach_with_leg(out[:, h], side, out[:, h, foot] + near * (target[:, foot] - out[:, h, foot]))
