@@ -36,8 +36,6 @@ GRAVITY = 9.81  # m/s^2
 
 _ARM = [*ELBOWS, *HANDS]
 # engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
-
-
 BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
                         + [child not in _ARM for _, child in BONES])
 
