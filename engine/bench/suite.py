@@ -77,7 +77,7 @@ def machine() -> dict:
 
 
 # What benchmark runs write: an earlier run's results are not a change to the code measured.
-BENCH_OUTPUTS = ("BENCHMARKS.md", "bench_full", "bench_figures")
+BENCH_OUTPUTS = ("BENCHMARKS.md", "bench.json", "bench_full", "bench_figures")
 
 
 def git_revision() -> dict:
