@@ -120,8 +120,9 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         # The steadying smooths the pops that a push out of an object makes, and so can put the
         # hand back in (a wrist 14 cm deep before its hold): pushed out again, steadied once more.
         cleared = clear_hands(joints, obj_pose, storyboard, config.contact.clear_frames)
-        if not np.array_equal(cleared, joints):
-            joints = steady_body(cleared, offsets, storyboard, config.steady)
+        pushed = np.flatnonzero(np.any(cleared != joints, axis=(0, 2, 3)))
+        if len(pushed):
+            joints = steady_body(cleared, offsets, storyboard, config.steady, pushed)
     rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
                    bone_offsets=offsets.astype(np.float32), **kw)

@@ -13,6 +13,8 @@ as it was; so is a frame whose held hand the smoothed body could no longer reach
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -143,13 +145,14 @@ def _steady_person(path: np.ndarray, held: np.ndarray, offsets: np.ndarray, conf
 
 
 def steady_body(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
-                config: SteadyConfig = SteadyConfig()) -> np.ndarray:
+                config: SteadyConfig = SteadyConfig(), people: Sequence[int] | None = None) -> np.ndarray:
     """joints (N, H, 22, 3) on each person's skeleton, offsets (H, 22, 3) -> the same where nothing
-    pops; where something does, smoothed with the held joints (held_joints) kept."""
+    pops; where something does, smoothed with the held joints (held_joints) kept. Only `people`
+    (indices; None: everyone) are steadied."""
     out = np.array(joints, float)
     if len(out) < 4:
         return out
     held = held_joints(out, storyboard, config.still, config.floor)
-    for h in range(out.shape[1]):
+    for h in range(out.shape[1]) if people is None else people:
         out[:, h] = _steady_person(out[:, h], held[:, h], offsets[h], config)
     return out
