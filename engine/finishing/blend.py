@@ -55,10 +55,14 @@ def spike(path: np.ndarray) -> np.ndarray:
 
 
 def ease_frames(distance: float, pop: float, shortest: int, longest: int) -> int:
-    """Frames (in [shortest, longest]) a smoothstep over `distance` needs to spike at most `pop`:
-    sampled over f + 1 steps its largest second difference is 6 / (f + 1)^2 of the distance, and
-    a spike is half of that."""
-    return int(np.clip(np.ceil(np.sqrt(3.0 * distance / pop)) - 1, shortest, max(longest, shortest)))
+    """Frames (in [shortest, longest]) a smoothstep from one still place to another `distance`
+    away needs so that it spikes (off its neighbours' midpoint, still ends included) at most `pop`."""
+    for frames in range(shortest, longest):
+        s = np.arange(frames + 2) / (frames + 1)
+        path = np.concatenate([[0.0], smoothstep(s), [1.0]])
+        if distance * np.abs(path[1:-1] - 0.5 * (path[:-2] + path[2:])).max() <= pop:
+            return frames
+    return max(longest, shortest)
 
 
 def ease_jumps(values: np.ndarray, at: list[int], frames_for: Callable[[float], int]) -> np.ndarray:

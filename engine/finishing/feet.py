@@ -27,9 +27,9 @@ from ..geometry.rotations import normalize
 from ..skeleton import ANKLES, FEET, HIPS, KNEES
 from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
-from .blend import smooth_correction
+from .blend import ease_frames, smooth_correction
 from .keys import closeness_to_keys
-from .walk import step_frames_for, walk_through_flights
+from .walk import walk_through_flights
 
 
 
@@ -163,7 +163,7 @@ def _swings(foot: np.ndarray, stop: int, start: int, config: FeetConfig) -> bool
 def _with_room_to_step(intervals: list[tuple[int, int]], foot: np.ndarray, config: FeetConfig,
                        keys: Sequence[int] = (), busy: np.ndarray | None = None) -> list[tuple[int, int]]:
     """Plants shortened so that the foot has frames enough to step from one to the next without
-    a jolt (walk.step_frames_for their distance): held to the ends of their stances, two plants
+    a jolt (blend.ease_frames for their distance): held to the ends of their stances, two plants
     0.77 m apart left a gliding foot 4 frames to cover it (a 7 cm spike of the foot, 11 cm of the
     knee). Each frame is taken from the plant the foot has left further behind at that frame; a
     plant keeps min_stance_frames, its key frames and the frames the other foot is off (busy),
@@ -178,7 +178,7 @@ def _with_room_to_step(intervals: list[tuple[int, int]], foot: np.ndarray, confi
             continue   # a swing of the foot's own keeps its own timing
         last_key = max((k for k in keys if s1 <= k < e1), default=-1)
         first_key = min((k for k in keys if s2 <= k < e2), default=len(foot))
-        need = step_frames_for(apart, config)
+        need = ease_frames(apart, config.step_pop, config.step_frames, config.max_step_frames)
         strict = True    # first while the other foot stands; then a brief hop beats a jolt
         while s2 - e1 < need:
             can_end = e1 - 1 >= s1 + config.min_stance_frames and e1 - 1 > last_key and (free[e1 - 1] or not strict)

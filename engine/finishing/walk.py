@@ -18,24 +18,13 @@ import numpy as np
 from scipy.ndimage import label
 
 from ..skeleton import ANKLES, FEET, HIPS, KNEES
-from ..synth.trajectory import smootherstep, smoothstep
+from ..synth.trajectory import smootherstep
 from .blend import spike
 
 if TYPE_CHECKING:
     from .feet import FeetConfig
 
 STILL = 0.005   # m a frame: a foot on the floor moving less than this to and from a frame stands
-
-
-def step_frames_for(distance: float, config: FeetConfig) -> int:
-    """Frames a step of `distance` m needs so that its eased path (smoothstep from plant to
-    plant) spikes at most config.step_pop, within [step_frames, max_step_frames]."""
-    for frames in range(config.step_frames, config.max_step_frames):
-        s = np.arange(frames + 2) / (frames + 1)
-        path = np.concatenate([[0.0], smoothstep(s), [1.0]])
-        if distance * np.abs(path[1:-1] - 0.5 * (path[:-2] + path[2:])).max() <= config.step_pop:
-            return frames
-    return config.max_step_frames
 
 
 def _standing(goal: np.ndarray, config: FeetConfig) -> np.ndarray:
