@@ -98,7 +98,6 @@ def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storybo
         weight[stronger, agent, side] = w[stronger]
 
     for c in storyboard.contacts:
-        frames = np.clip(np.arange(n), c.start, c.end)
         w = span_weight(n, c.start, c.end, config.blend_frames)
         a, s = storyboard.agent_index(c.agent), HAND_NAMES.index(c.hand)
         if c.object is not None:
@@ -111,6 +110,7 @@ def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storybo
             put(a, s, obj_anchors.reshape(n, -1, 3)[:, flat], w)
             continue
         b, t = storyboard.agent_index(c.other_agent), HAND_NAMES.index(c.other_hand)
+        frames = np.clip(np.arange(n), c.start, c.end)   # held at the span's start before it, its end after
         mid = 0.5 * (wrists[frames, a, s] + wrists[frames, b, t])
         # Clasped hands sit side by side, a hand's width apart along the line between the people.
         apart = normalize((joints[frames, b, 0] - joints[frames, a, 0]) * [1, 0, 1]) * config.hand_gap / 2

@@ -32,8 +32,6 @@ from .blend import ease_frames, ease_jumps
 from .contacts import ContactConfig, anchor_table, arm_lengths, forward_of, object_anchors, span_weight
 
 GRAVITY = 9.81  # m/s^2
-
-
 _ARM = [*ELBOWS, *HANDS]
 # engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
 BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-_EPS = 1e-9
+EPS = 1e-9
 
 
 def normalize(v: np.ndarray, axis: int = -1) -> np.ndarray:
-    return v / np.maximum(np.sqrt(np.sum(v * v, axis=axis, keepdims=True)), _EPS)
+    return v / np.maximum(np.sqrt(np.sum(v * v, axis=axis, keepdims=True)), EPS)
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -40,7 +40,7 @@ def sixd_to_matrix(d6: np.ndarray) -> np.ndarray:
 def axis_angle_to_matrix(aa: np.ndarray) -> np.ndarray:
     """Rodrigues: (..., 3) rotation vectors -> (..., 3, 3)."""
     angle = np.linalg.norm(aa, axis=-1, keepdims=True)
-    axis = aa / np.maximum(angle, _EPS)
+    axis = aa / np.maximum(angle, EPS)
     x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
     zero = np.zeros_like(x)
     K = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], axis=-1).reshape(aa.shape[:-1] + (3, 3))
@@ -54,7 +54,7 @@ def matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:
     q = matrix_to_quat(R)                                   # w >= 0, so the angle is <= pi
     s = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
     angle = 2 * np.arctan2(s, q[..., :1])
-    return q[..., 1:] * angle / np.maximum(s, _EPS)
+    return q[..., 1:] * angle / np.maximum(s, EPS)
 
 
 def euler_to_matrix(angles_deg: np.ndarray, order: str) -> np.ndarray:
@@ -111,7 +111,7 @@ def matrix_to_quat(R: np.ndarray) -> np.ndarray:
         else:
             i = b - 1
             j, k = (i + 1) % 3, (i + 2) % 3
-            s = np.sqrt(np.maximum(1.0 + r[:, i, i] - r[:, j, j] - r[:, k, k], _EPS)) * 2
+            s = np.sqrt(np.maximum(1.0 + r[:, i, i] - r[:, j, j] - r[:, k, k], EPS)) * 2
             out = np.empty((r.shape[0], 4))
             out[:, 0] = (r[:, k, j] - r[:, j, k]) / s
             out[:, 1 + i] = 0.25 * s

@@ -10,7 +10,7 @@ import math
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ..geometry.rotations import normalize
+from ..geometry.rotations import EPS, normalize
 
 UP = np.array([0.0, 1.0, 0.0])
 
@@ -72,9 +72,6 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, upper: float, lower: float
     return middle, end
 
 
-_EPS = 1e-9   # normalize's
-
-
 def continuous_pole(pole: np.ndarray, axis: np.ndarray, carry_m: float = 0.03) -> np.ndarray:
     """Poles (N, ..., 3) of two-bone chains whose root-to-end directions are `axis` (N, ..., 3),
     kept on one side from frame to frame (axis 0): each frame's pole across its axis, plus
@@ -95,11 +92,11 @@ def continuous_pole(pole: np.ndarray, axis: np.ndarray, carry_m: float = 0.03) -
             px, py, pz = previous[c]
             along = px * ax + py * ay + pz * az
             kx, ky, kz = px - along * ax, py - along * ay, pz - along * az
-            k = carry_m / max(math.sqrt(kx * kx + ky * ky + kz * kz), _EPS)
+            k = carry_m / max(math.sqrt(kx * kx + ky * ky + kz * kz), EPS)
             o[0] += k * kx
             o[1] += k * ky
             o[2] += k * kz
-            length = max(math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]), _EPS)
+            length = max(math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]), EPS)
             previous[c] = (o[0] / length, o[1] / length, o[2] / length)
     out = np.array(rows)
     return out.reshape(pole.shape)
