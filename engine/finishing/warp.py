@@ -129,7 +129,8 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
 
     Each sketched joint goes to its sketch point; what is left is its depth along the camera
     ray (the viewing direction: the sketch camera is orthographic). Least squares chooses the
-    depths: every bone keeps the depth difference it has in the generated pose, every foot the
+    depths: every sketched joint keeps the depth difference the generated pose gives it from its
+    nearest sketched ancestor, every foot the
     generated pose stands on (within `stance_tolerance` of its lower foot) stands on the ground,
     and, weakly, every bone keeps its length. Bone lengths alone decide little: a bone near the
     sketch plane 1 cm shorter than drawn is sqrt(2 L dL) deep, 10 cm for a thigh, and the
@@ -141,14 +142,20 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     sketched = np.flatnonzero(mask)
     at = np.full(NUM_JOINTS, -1)
     at[sketched] = np.arange(len(sketched))
-    bones = np.array([j for j in sketched if PARENTS[j] >= 0 and mask[PARENTS[j]]], int)
-    child, parent, bone_lengths = at[bones], at[np.asarray(PARENTS)[bones]], lengths[bones]
+    # A sketched joint keeps its generated depth difference to its nearest sketched ancestor (a
+    # shoulder whose collar and spine the artist left out still rides on the pelvis: linked only to
+    # its parent, the arms kept their depth as the grounded legs and pelvis slid 20 cm along the
+    # rays); only a joint whose parent is sketched has a bone length to keep.
+    linked = np.array([j for j in sketched if _sketched_ancestor(j, mask) >= 0], int)
+    child, parent = at[linked], at[[_sketched_ancestor(j, mask) for j in linked]]
+    bones = np.array([j for j in linked if mask[PARENTS[j]]], int)
+    bone_child, bone_parent, bone_lengths = at[bones], at[np.asarray(PARENTS)[bones]], lengths[bones]
     feet = joints[list(FEET), 1]
     standing = [at[f] for f, y in zip(FEET, feet) if mask[f] and y - feet.min() < config.stance_tolerance]
     if abs(back[1]) <= LEVEL:
         standing = []
     # Unknowns: each sketched joint's change of depth, x (S,). Linear rows A x = b: the anchor,
-    # the bones' depth differences, the standing feet's heights.
+    # the depth differences, the standing feet's heights.
     eye = np.eye(len(sketched))
     a = np.concatenate([config.depth_anchor * eye, eye[child] - eye[parent],
                         config.ground_weight * back[1] * eye[standing]])
@@ -158,10 +165,10 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     x = np.linalg.lstsq(a, b, rcond=None)[0]
     for _ in range(config.bone_iterations):   # Gauss-Newton on the bone lengths
         points = origin[sketched] + (depth[sketched] + x)[:, None] * back
-        bone = points[child] - points[parent]
+        bone = points[bone_child] - points[bone_parent]
         length = np.maximum(np.linalg.norm(bone, axis=-1), 1e-9)
         slope = config.bone_weight * (bone @ back) / length                     # d length / d x_child
-        jac = np.concatenate([a, slope[:, None] * (eye[child] - eye[parent])])
+        jac = np.concatenate([a, slope[:, None] * (eye[bone_child] - eye[bone_parent])])
         res = np.concatenate([a @ x - b, config.bone_weight * (length - bone_lengths)])
         x = x - np.linalg.lstsq(jac, res, rcond=None)[0]
     out = joints.copy()
@@ -173,6 +180,14 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     if abs(back[1]) > LEVEL:   # the lower foot exactly on the ground: a slide along the ray keeps the sketch
         out += grounding_height(out, config.foot_height) / back[1] * back
     return out
+
+
+def _sketched_ancestor(joint: int, mask: np.ndarray) -> int:
+    """The nearest of `joint`'s ancestors that mask (22,) places, or -1."""
+    parent = PARENTS[joint]
+    while parent >= 0 and not mask[parent]:
+        parent = PARENTS[parent]
+    return parent
 
 
 def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,

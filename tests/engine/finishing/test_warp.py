@@ -12,7 +12,7 @@ from engine.finishing.steady import SteadyConfig, frame_pops
 from engine.finishing.warp import BODY_PARTS, scale_per_bone, sketched_scales, solve_keypose, warp_to_keyposes
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.metrics import keypose_errors_2d
-from engine.skeleton import bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
+from engine.skeleton import JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
 from engine.sketchify import sketchify
 from engine.synth import synthesize
 
@@ -95,6 +95,26 @@ def test_solve_keypose_places_a_pose_drawn_at_the_wrong_depth_by_its_standing_fe
         lengths = np.linalg.norm(offsets[h], axis=-1) * 1.03   # the decoder's bones are a little off
         drawn = truth + 0.4 * back + (0.0, 0.1, 0.0)
         posed = solve_keypose(drawn, key.points, key.mask, sb.camera, lengths)
+        assert np.linalg.norm(posed - truth, axis=-1).max() < 0.03
+
+
+def test_solve_keypose_slides_the_arms_with_the_body_when_the_spine_and_collars_are_unplaced(scene):
+    """Artists often leave the spine and collars out: the shoulders then still ride on the
+    pelvis as the ground places the figure (linked only to their own unplaced parents, the arms
+    stayed at the generated depth while the legs slid 40 cm along the rays)."""
+    clip, sb = scene
+    joints, offsets = consistent_skeleton(clip.joints.astype(float))
+    back = sb.camera.basis()[2]
+    unplaced = [JOINT_INDEX[name] for name in ("spine1", "spine2", "spine3", "l_collar", "r_collar")]
+    for key in sb.keyposes:
+        h = sb.agent_index(key.agent)
+        truth = joints[key.frame, h]
+        if truth[[10, 11], 1].max() > 0.05:
+            continue
+        mask = key.mask.copy()
+        mask[unplaced] = False
+        lengths = np.linalg.norm(offsets[h], axis=-1)
+        posed = solve_keypose(truth + 0.4 * back, key.points, mask, sb.camera, lengths)
         assert np.linalg.norm(posed - truth, axis=-1).max() < 0.03
 
 
