@@ -130,9 +130,8 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     Each sketched joint goes to its sketch point; what is left is its depth along the camera
     ray (the viewing direction: the sketch camera is orthographic). Least squares chooses the
     depths: every sketched joint keeps the depth difference the generated pose gives it from its
-    nearest sketched ancestor, every foot the
-    generated pose stands on (within `stance_tolerance` of its lower foot) stands on the ground,
-    and, weakly, every bone keeps its length. Bone lengths alone decide little: a bone near the
+    nearest sketched ancestor, every foot the generated pose stands on (within `stance_tolerance`
+    of its lower foot) stands on the ground, and, weakly, every bone keeps its length. Bone lengths alone decide little: a bone near the
     sketch plane 1 cm shorter than drawn is sqrt(2 L dL) deep, 10 cm for a thigh, and the
     decoder's bones are ~3% off. With a level camera the ground fixes no depth; the generated
     depths stay."""
