@@ -8,7 +8,8 @@ moves the figure the way an animator's rig would, keeping every bone's drawn len
     wrist, ankle           two-bone IK from the shoulder or hip, the elbow or knee bending the
                            way it bends now; the foot rides on the ankle. A wrist dragged beyond
                            the arm's reach first leans the chest towards it (as a spine3 drag
-                           does, by at most MAX_LEAN degrees), as a body reaching for something does
+                           does, by at most MAX_LEAN degrees), as a body reaching for something does;
+                           the other hand stays where it was while its arm reaches it
     spine joints           a chest control: the spine bends from the pelvis to put the joint
                            there, all above it moves along without turning (turning its own
                            short bone folded the chest 60 degrees for a 15 cm drag)
@@ -120,6 +121,16 @@ def _lean_towards(points: np.ndarray, mask: np.ndarray, wrist: int, target: np.n
     return out
 
 
+def _keep_hand(points: np.ndarray, mask: np.ndarray, before: np.ndarray, wrist: int) -> None:
+    """The other hand, which a lean carried off, back where it was (in place; its arm re-solved)
+    where its arm still reaches that: as an IK rig's hand control, it stays where the artist put it
+    (carried along, a left hand placed first moved 8 cm as the right one was dragged beyond reach)."""
+    shoulder, elbow = LIMB_ENDS[wrist]
+    arm = np.linalg.norm(points[elbow] - points[shoulder]) + np.linalg.norm(points[wrist] - points[elbow])
+    if mask[wrist] and np.linalg.norm(before[wrist] - points[shoulder]) <= arm:
+        _reach(points, mask, wrist, before[wrist])
+
+
 def _bend_chain(points: np.ndarray, root: int, chain: list[int], target: np.ndarray) -> np.ndarray:
     """points (22, 2) with the dragged joint chain[-1] moved to `target` like a rig's control: the
     bones from `root` (fixed) up the chain bend to reach it (FABRIK, bone lengths kept; out of
@@ -174,6 +185,7 @@ def drag_pose(points: np.ndarray, mask: np.ndarray, joint: int, target, mode: st
     elif joint in LIMB_ENDS:
         if joint in WRISTS:
             out = _lean_towards(out, mask, joint, target, pinned)
+            _keep_hand(out, mask, before, next(w for w in WRISTS if w != joint))
         _reach(out, mask, joint, target)
     elif joint in BENDS and mask[[BENDS[joint][0], *BENDS[joint][1]]].all():
         out = _bend_chain(before, *BENDS[joint], target)

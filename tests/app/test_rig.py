@@ -101,6 +101,30 @@ def test_a_wrist_dragged_beyond_reach_leans_the_chest_to_get_there(qtbot, posed)
     np.testing.assert_allclose(pinned[J["spine3"]], before[J["spine3"]])
 
 
+def test_the_other_hand_stays_where_it_was_put_while_the_chest_leans(qtbot, posed):
+    """As an IK rig's hand control: the left hand placed first stays as the right one, dragged
+    beyond reach, leans the chest (carried along, it moved 8 cm in the artist-style benchmark)."""
+    canvas, doc = posed
+    start = points(doc)
+    drag(qtbot, canvas, start[J["l_wrist"]], start[J["l_wrist"]] + (0.1, 0.3))
+    placed = points(doc)[J["l_wrist"]]
+    before = points(doc)
+    target = before[J["r_shoulder"]] + (-0.62, 0.0)              # beyond the right arm's reach
+    drag(qtbot, canvas, before[J["r_wrist"]], target)
+    after = points(doc)
+    assert after[J["spine3"]][0] < before[J["spine3"]][0] - 0.05   # the chest leant ...
+    assert np.linalg.norm(after[J["l_wrist"]] - placed) < 1e-9      # ... the left hand stayed
+    assert np.linalg.norm(after[J["l_elbow"]] - before[J["l_elbow"]]) > 0.01   # its arm re-bent
+    np.testing.assert_allclose(bones(after), bones(start), atol=1e-9)
+    # Beyond the leant arm's reach it goes along with the chest (never a straight arm pointing).
+    far, (shoulder, elbow, wrist) = before.copy(), (J["l_shoulder"], J["l_elbow"], J["l_wrist"])
+    upper, lower = (np.linalg.norm(before[a] - before[b]) for a, b in ((elbow, shoulder), (wrist, elbow)))
+    far[elbow] = far[shoulder] + (upper, 0.0)                      # straight out, away from the lean
+    far[wrist] = far[elbow] + (lower, 0.0)
+    leaned = drag_pose(far, np.ones(22, bool), J["r_wrist"], target)
+    assert np.linalg.norm(leaned[J["l_wrist"]] - far[J["l_wrist"]]) > 0.05
+
+
 def test_a_middle_joint_turns_its_limb_and_the_pelvis_carries_the_figure(qtbot, posed):
     canvas, doc = posed
     before, after = drag_joint(qtbot, canvas, doc, "l_knee", (0.25, 0.05))
