@@ -292,7 +292,8 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
         """The keypose's points (22, 2) with joint drag g applied by the rig."""
         points, mask = g.pose
         pinned = tuple(JOINT_INDEX[j] for j in self._doc.pinned_joints(g.agent))
-        return drag_pose(points, mask, g.joint, g.points[-1], g.mode, pinned)
+        return drag_pose(points, mask, g.joint, g.points[-1], g.mode, pinned,
+                         standing_pose_2d(self._doc.storyboard.camera))
 
     def _finish_joint(self, g: _Gesture):
         edit = self._drag_edit(g)

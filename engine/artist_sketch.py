@@ -114,7 +114,7 @@ def _posed_figure(k: Keypose, template: np.ndarray, rng: np.random.Generator, co
     for name in DRAGGED:
         j = JOINT_INDEX[name]
         if k.mask[j]:
-            points = drag_pose(points, placed, j, k.points[j] + _offsets(rng, 1, config)[0])
+            points = drag_pose(points, placed, j, k.points[j] + _offsets(rng, 1, config)[0], template=template)
     return Keypose(k.agent, k.frame, points, placed)
 
 

@@ -2,14 +2,18 @@
 and the artist-style benchmark poses its figures with it, as an artist on the canvas would).
 
 A keypose is 22 points (22, 2) of the skeleton (engine.skeleton's hierarchy). Dragging one point
-moves the figure the way an animator's rig would, keeping every bone's drawn length:
+moves the figure the way an animator's rig would, keeping every bone's drawn length but where
+a limb straightens:
 
     pelvis                 the whole figure moves
     wrist, ankle           two-bone IK from the shoulder or hip, the elbow or knee bending the
-                           way it bends now; the foot rides on the ankle. A wrist dragged beyond
-                           the arm's reach first leans the chest towards it (as a spine3 drag
-                           does, by at most MAX_LEAN degrees), as a body reaching for something does;
-                           the other hand stays where it was while its arm reaches it
+                           way it bends now; the foot rides on the ankle. Dragged beyond its
+                           reach, a limb first straightens out of depth (given the standing
+                           template: its two drawn bones grow alike, up to STRAIGHTEN times the
+                           template's limb at the figure's scale); a wrist then leans the chest
+                           towards it (as a spine3 drag does, by at most MAX_LEAN degrees), as a
+                           body reaching for something does, the other hand staying where it was
+                           while its arm reaches it
     spine joints           a chest control: the spine bends from the pelvis to put the joint
                            there, all above it moves along without turning (turning its own
                            short bone folded the chest 60 degrees for a 15 cm drag)
@@ -45,6 +49,12 @@ CHEST = JOINT_INDEX["spine3"]
 WRISTS = (JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"])
 MAX_LEAN = 35        # degrees the chest may turn about the pelvis towards a hand dragged beyond reach ...
 LEAN_HEIGHT = 0.85   # ... keeping this share of its distance from the pelvis
+# How much longer than the standing template's a limb may be drawn: the template hangs its limbs
+# down, seen from the camera's elevation (at 20 degrees 94% of their length shows), and bodies run
+# up to 10% larger than it (finishing's sketched_scales). Kept to the template's lengths, a posed
+# figure's hand or foot stopped short of where the artist put it in half of the drags, by 10 cm
+# (artist-style benchmark: the synthesized people's legs are 13% longer than the template shows).
+STRAIGHTEN = 1.15
 
 
 def _subtree(joint: int) -> list[int]:
@@ -80,22 +90,27 @@ def two_bone_2d(root: np.ndarray, mid: np.ndarray, end: np.ndarray, target: np.n
     return middle, root + dist * direction
 
 
-def _reach(points: np.ndarray, mask: np.ndarray, end: int, target: np.ndarray) -> None:
-    """Re-solve end's limb in place so that end reaches target (all of its chain placed)."""
+def _reach(points: np.ndarray, mask: np.ndarray, end: int, target: np.ndarray, longest: float = 0.0) -> None:
+    """Re-solve end's limb in place so that end reaches target (all of its chain placed); a limb
+    shorter than `longest` (m, both bones) that does not reach straightens out of depth first: both
+    bones grow alike, up to that."""
     root, mid = LIMB_ENDS[end]
     if not mask[[root, mid, end]].all():
         points[end] = target
         return
     old_end = points[end].copy()
-    points[mid], points[end] = two_bone_2d(points[root], points[mid], points[end], target)
+    limb = np.linalg.norm(points[mid] - points[root]) + np.linalg.norm(points[end] - points[mid])
+    grow = np.clip(np.linalg.norm(target - points[root]), limb, max(longest, limb)) / max(limb, 1e-12)
+    elbow = points[root] + grow * (points[mid] - points[root])
+    points[mid], points[end] = two_bone_2d(points[root], elbow, elbow + grow * (points[end] - points[mid]), target)
     for j in SUBTREE[end][1:]:                                  # the foot rides on the ankle
         points[j] += points[end] - old_end
 
 
 def _lean_towards(points: np.ndarray, mask: np.ndarray, wrist: int, target: np.ndarray,
-                  pinned: tuple[int, ...]) -> np.ndarray:
+                  pinned: tuple[int, ...], longest: float = 0.0) -> np.ndarray:
     """points (22, 2) with the chest bent towards target (2,) (as a spine3 drag bends it) until the
-    wrist's arm reaches it, the chest turning at most MAX_LEAN degrees about the pelvis and
+    wrist's arm (straightened to `longest` where that is longer) reaches it, the chest turning at most MAX_LEAN degrees about the pelvis and
     coming no closer to it than LEAN_HEIGHT of its distance (a reach for the floor folded the
     spine in two); unchanged when the arm reaches already, or the upper body is unplaced or
     pinned (a pinned wrist re-reaches its place after)."""
@@ -104,7 +119,7 @@ def _lean_towards(points: np.ndarray, mask: np.ndarray, wrist: int, target: np.n
     upper = SUBTREE[chain[0]]
     if not mask[[root, *upper]].all() or set(pinned) & (set(upper) - set(WRISTS)):
         return points
-    arm = np.linalg.norm(points[elbow] - points[shoulder]) + np.linalg.norm(points[wrist] - points[elbow])
+    arm = max(np.linalg.norm(points[elbow] - points[shoulder]) + np.linalg.norm(points[wrist] - points[elbow]), longest)
     upright = points[CHEST] - points[root]
     height = float(np.linalg.norm(upright))
     out = points
@@ -119,6 +134,24 @@ def _lean_towards(points: np.ndarray, mask: np.ndarray, wrist: int, target: np.n
         reach = np.clip(np.linalg.norm(goal), LEAN_HEIGHT * height, height)
         out = _bend_chain(points, root, chain, points[root] + reach * _unit(_rotate(upright, np.zeros(2), turn)))
     return out
+
+
+def _limb(points: np.ndarray, end: int) -> float:
+    """Length (m) of end's two-bone limb in points (22, 2)."""
+    root, mid = LIMB_ENDS[end]
+    return float(np.linalg.norm(points[mid] - points[root]) + np.linalg.norm(points[end] - points[mid]))
+
+
+def _figure_scale(points: np.ndarray, mask: np.ndarray, template: np.ndarray) -> float:
+    """How much larger than the template (22, 2) the figure points (22, 2) is drawn: the median
+    over its placed bones of their length over the template's (a few straightened or foreshortened
+    bones leave it; a figure scaled with Ctrl scales it)."""
+    bones = [j for j in range(1, len(PARENTS)) if mask[j] and mask[PARENTS[j]]]
+    if not bones:
+        return 1.0
+    drawn = np.linalg.norm(points[bones] - points[[PARENTS[j] for j in bones]], axis=-1)
+    own = np.linalg.norm(template[bones] - template[[PARENTS[j] for j in bones]], axis=-1)
+    return float(np.median(drawn / np.maximum(own, 1e-9)))
 
 
 def _keep_hand(points: np.ndarray, mask: np.ndarray, before: np.ndarray, wrist: int) -> None:
@@ -162,9 +195,10 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def drag_pose(points: np.ndarray, mask: np.ndarray, joint: int, target, mode: str = "rig",
-              pinned: tuple[int, ...] = ()) -> np.ndarray:
+              pinned: tuple[int, ...] = (), template: np.ndarray | None = None) -> np.ndarray:
     """The pose (22, 2) after `joint` of `points` (22, 2; mask (22,) bool: placed) is dragged to
-    target (2,) in `mode` (MODES), keeping `pinned` joints where they are."""
+    target (2,) in `mode` (MODES), keeping `pinned` joints where they are; `template` (22, 2), the
+    standing figure in the same camera (engine.poses), lets a limb straighten (STRAIGHTEN)."""
     target = np.asarray(target, float)
     before = np.asarray(points, float)
     out = before.copy()
@@ -183,10 +217,11 @@ def drag_pose(points: np.ndarray, mask: np.ndarray, joint: int, target, mode: st
     elif joint == PELVIS:
         out += target - before[PELVIS]
     elif joint in LIMB_ENDS:
+        longest = 0.0 if template is None else STRAIGHTEN * _figure_scale(before, mask, template) * _limb(template, joint)
         if joint in WRISTS:
-            out = _lean_towards(out, mask, joint, target, pinned)
+            out = _lean_towards(out, mask, joint, target, pinned, longest)
             _keep_hand(out, mask, before, next(w for w in WRISTS if w != joint))
-        _reach(out, mask, joint, target)
+        _reach(out, mask, joint, target, longest)
     elif joint in BENDS and mask[[BENDS[joint][0], *BENDS[joint][1]]].all():
         out = _bend_chain(before, *BENDS[joint], target)
     else:

@@ -1,11 +1,14 @@
 """Artist-style storyboards and the animator's figures: the drawings differ from the traced one as
 an artist's do, stay valid, and the figures catch what an animator would reject."""
+import itertools
+
 import numpy as np
 import pytest
 
 from engine.bench.animator import animator_metrics, bone_change, foot_float, pop, timing
 from engine.artist_sketch import UNPLACED_CANDIDATES, hand_drawn, posed_with_tools
 from engine.poses import standing_pose_2d
+from engine.rig import STRAIGHTEN
 from engine.skeleton import JOINT_INDEX, PARENTS, rest_pose
 from engine.sketchify import sketchify
 from engine.synth import synthesize
@@ -41,8 +44,14 @@ def test_posed_storyboards_are_the_template_posed_with_the_rig(scene):
     limbs = [JOINT_INDEX[f"{s}_{j}"] for s in "lr" for j in ("elbow", "wrist", "knee", "ankle", "foot")]
     drawn = {(k.agent, k.frame): k for k in clean.keyposes}
     reached = 0
-    for p in posed.keyposes:   # the rig keeps the template's drawn bones; a hand in reach lands on its drag
-        assert np.allclose(_bones(p.points)[limbs], _bones(template)[limbs])
+    straightened = 0
+    for p in posed.keyposes:   # the rig keeps the template's bones or straightens a limb; a hand in reach lands on its drag
+        grown = _bones(p.points) / np.maximum(_bones(template), 1e-9)
+        others = [j for j in range(1, 22) if j not in limbs]
+        assert np.allclose(grown[others], 1.0) and np.all((grown[limbs] > 1 - 1e-9) & (grown[limbs] < STRAIGHTEN + 1e-9))
+        for side, (upper, lower) in itertools.product("lr", (("elbow", "wrist"), ("knee", "ankle"))):
+            assert np.isclose(grown[JOINT_INDEX[f"{side}_{upper}"]], grown[JOINT_INDEX[f"{side}_{lower}"]])   # both bones alike
+        straightened += int(np.any(grown[limbs] > 1 + 1e-6))
         c = drawn.get((p.agent, p.frame))
         for side in "lr":
             wrist, shoulder = JOINT_INDEX[f"{side}_wrist"], JOINT_INDEX[f"{side}_shoulder"]
@@ -50,7 +59,7 @@ def test_posed_storyboards_are_the_template_posed_with_the_rig(scene):
             if c is not None and np.linalg.norm(c.points[wrist] - p.points[shoulder]) < arm - 0.04:
                 assert np.linalg.norm(p.points[wrist] - c.points[wrist]) <= 0.031
                 reached += 1
-    assert reached > 0
+    assert reached > 0 and straightened > 0
 
 
 def _bones(points: np.ndarray) -> np.ndarray:
