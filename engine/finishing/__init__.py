@@ -12,11 +12,12 @@ that keep each person's bone lengths:
 3. feet standing on the ground, planted while in stance (where a keypose in the stance has the
    foot), stepping between plants (one foot at a time: walk.py), the body lowering where it
    stands too tall for its planted legs (feet.py);
-4. the object as a rigid body that moves only in the hands that hold it (held.py), and the arms
-   reaching its grips (or the partner's hand) over every contact span (contacts.py); a holder the
-   grip is beyond arm's reach of steps towards it first, before the feet are planted (held.py); for an object the
-   storyboard gives no contact, the holds are the generated motion's (inferred.py); hands out of
-   a hold pushed out of the objects they sink into (clearance.py);
+4. the object as a rigid body that moves only in the hands that hold it, resting clear of the
+   people's legs otherwise (held.py), and the arms reaching its grips (or the partner's hand)
+   over every contact span (contacts.py); a holder the grip is beyond arm's reach of steps
+   towards it first, before the feet are planted (held.py); for an object the storyboard gives
+   no contact, the holds are the generated motion's (inferred.py); hands out of a hold pushed
+   out of the objects they sink into (clearance.py);
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
    bone lengths (limbs.py);
 6. the whole body smoothed where it still pops, what the stages above made exact held

@@ -37,7 +37,9 @@ class ContactConfig:
     rest_height: float = 0.0       # m the base of a resting object sits above the ground
     hand_gap: float = 0.09         # m between two clasped wrists (the synthesizer's handshake grip)
     min_spread: float = 1e-4       # m^2: grip spread below which the yaw fit is undefined (one hand)
-    clear_iterations: int = 4      # pushes of a held object out of its holders' bodies (0: none)
+    clear_iterations: int = 4      # pushes of a held object out of its holders' bodies, and of a resting one
+                                   # out of anybody's (0: none)
+    most_rest_shift: float = 0.2   # m a resting object may slide from where it lies to be clear of the bodies
     swivel_cost: float = 0.01      # m of penetration worth turning an elbow by one radian
     swivel_change_cost: float = 0.05   # m of penetration worth a one-radian turn between frames
                                        # (squared: a turn spread over frames costs less)

@@ -7,7 +7,8 @@ it, eased where hands join or leave the hold, at a height every holder's arm rea
 moved across towards a holder it is beyond the reach of, out of the holders' bodies; resting on
 the ground before, between and after holds, where the sketch puts it (holds a few frames from
 each other or from the clip's ends are one, where the sketch does not put it down: an artist's
-spans are a few frames off). contacts.py then puts the hands on its grips.
+spans are a few frames off), slid along the ground out of the legs of people who stand in it.
+contacts.py then puts the hands on its grips.
 
 `step_within_reach` comes first: it moves a holder whose grip is beyond arm's reach towards it
 (two people carrying one box drift apart along their timing-free paths; an arm cannot close
@@ -94,6 +95,39 @@ def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints
         depth = np.max(spec.penetration_local(local, radii), axis=-1)  # (N, H)
         pos = pos + np.sum(np.where(holding, depth, 0)[..., None] * away, axis=1)
     return pos
+
+
+def _rest_clear_of_people(pose: np.ndarray, joints: np.ndarray, held: np.ndarray, spec: ObjectSpec,
+                          config: ContactConfig) -> np.ndarray:
+    """A resting object's pose (N, 7) slid along the ground, over each stretch it lies still and
+    unheld (held (N, 2H)), by the least it takes to clear every body sphere but the arms' (which
+    reach for it) of joints (N, H, 22, 3), at most `most_rest_shift`, eased in and out over
+    `lift_frames` around the stretch. The sketch puts boxes and tables where people walk up to
+    them; a knee stood 8-15 cm inside a box drawn on the floor before its pick-up."""
+    n = len(pose)
+    still = np.linalg.norm(np.diff(pose[:, :3], axis=0), axis=-1) < 1e-6
+    resting = (np.concatenate([[True], still]) & np.concatenate([still, [True]]) & ~held.any(axis=1)
+               & (np.abs(pose[:, 1] - config.rest_height) < 1e-6))
+    points, radii = body_points(joints)
+    points, radii = points[:, :, BODY_SPHERES], radii[BODY_SPHERES]   # (N, H, S, 3), (S,)
+    shift, frames, k = np.zeros((n, 3)), np.arange(n), config.lift_frames
+    for start, end in true_spans(resting):
+        bodies = points[start:end + 1].reshape(-1, 3)
+        sizes = np.tile(radii, len(bodies) // len(radii))
+        placed, move = pose[start].copy(), np.zeros(3)
+        for _ in range(config.clear_iterations):
+            placed[:3] = pose[start, :3] + move
+            depth = spec.penetration_local(world_to_local(bodies[None], placed[None])[0], sizes)
+            if depth.max() <= 0.0:
+                break
+            away = normalize((placed[:3] + (0.0, spec.size[1] / 2, 0.0) - bodies) * (1.0, 0.0, 1.0))
+            move = move + depth.max() * normalize(np.sum(np.maximum(depth, 0.0)[:, None] * away, axis=0))
+            move *= min(1.0, config.most_rest_shift / max(float(np.linalg.norm(move)), 1e-9))
+        weight = np.clip(np.minimum(frames - (start - k), end + k - frames) / k, 0.0, 1.0)   # 1 over the stretch
+        shift += smoothstep(weight)[:, None] * move
+    out = pose.copy()
+    out[:, :3] += shift
+    return out
 
 
 def _within_vertical_reach(height: np.ndarray, joints: np.ndarray, grips: np.ndarray, held: np.ndarray,
@@ -193,7 +227,8 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     spans = true_spans(held.any(axis=1))
     if not spans:  # never held: a still object where it was sketched (else decoded), on the ground
         place = rests[0] if rests[0] is not None else np.median(decoded[:, :3], axis=0)
-        return pose_array(np.tile(_grounded(place, config), (n, 1)), np.full(n, still_yaw))
+        return _rest_clear_of_people(pose_array(np.tile(_grounded(place, config), (n, 1)), np.full(n, still_yaw)),
+                                     joints, held, spec, config)
 
     fit_yaw, defined = _fit_yaw(wrists, grips, held, config.min_spread)
     # One hand cannot turn the object: keep the last defined yaw (before any, the first one).
@@ -265,7 +300,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
             w = smoothstep(np.arange(1, n - end) / fall)[:, None] * (1.0, 0.0, 1.0)
             pos[end + 1:] += w * (landing - pos[end + 1:])
         yaw[end + 1:] = held_yaw[-1]
-    return pose_array(pos, yaw)
+    return _rest_clear_of_people(pose_array(pos, yaw), joints, held, spec, config)
 
 
 def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,

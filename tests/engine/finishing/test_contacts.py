@@ -4,11 +4,12 @@ wrists reach their grips (or the other person's hand) by exact-length arm IK."""
 import numpy as np
 import pytest
 
+from engine.body import body_points
 from engine.controls import build_controls
 from engine.finishing.contacts import ContactConfig, object_anchors, reach_contacts
-from engine.finishing.held import _within_reach_across, _yaw_of, hold_object, step_within_reach
+from engine.finishing.held import BODY_SPHERES, _within_reach_across, _yaw_of, hold_object, step_within_reach
 from engine.metrics import anchor_error
-from engine.objects import ObjectSpec
+from engine.objects import ObjectSpec, world_to_local
 from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
 from engine.sketchify import sketchify
 from engine.storyboard import Agent, Contact, ObjectKey, SceneObject, Storyboard
@@ -123,6 +124,33 @@ def test_an_object_nobody_holds_rests_where_it_was_sketched():
     pose = clip.obj_pose + np.array([1.0, 0.3, -0.8, 0, 0, 0, 0])
     held = hold_object(clip.joints.astype(float), pose, sb)
     np.testing.assert_allclose(held[..., :3], clip.obj_pose[..., :3], atol=0.01)
+
+
+def test_a_resting_object_slides_out_of_the_legs_of_a_person_who_stands_in_it():
+    """The sketch puts a box where a person walks up to it: at their closest the person's knees
+    stand 8 cm inside it. It slides along the ground (the same place all through: it rests) by
+    the least that clears every body sphere but the arms', within ContactConfig.most_rest_shift."""
+    clip = synthesize("handshake", 4, fps=20)              # the prop stands by, never touched
+    sb = sketchify(clip, 4, 0.0, 4)
+    spec, rest = sb.objects[0].spec, clip.obj_pose[0, 0, :3].astype(float)
+    joints = clip.joints.astype(float)
+    away = (joints[:, 0, 0] - rest) * (1, 0, 1)
+    f = int(np.argmin(np.linalg.norm(away, axis=-1)))
+    joints[:, 0] += (rest + away[f] / np.linalg.norm(away[f]) * (max(spec.size[0], spec.size[2]) / 2 + 0.1)
+                     - joints[f, 0, 0]) * (1, 0, 1)
+
+    def deepest(pose):
+        points, radii = body_points(joints)
+        points, radii = points[:, :, BODY_SPHERES], radii[BODY_SPHERES]
+        local = world_to_local(points.reshape(len(joints), -1, 3), pose[:, 0])
+        return spec.penetration_local(local, np.tile(radii, joints.shape[1])).max()
+
+    assert deepest(clip.obj_pose.astype(float)) > 0.05
+    held = hold_object(joints, clip.obj_pose + np.array([1.0, 0.3, -0.8, 0, 0, 0, 0]), sb)
+    assert deepest(held) < 1e-3
+    slide = held[:, 0, :3] - clip.obj_pose[:, 0, :3]
+    assert np.ptp(slide, axis=0).max() < 1e-9 and abs(slide[0, 1]) < 1e-9          # one place, on the ground
+    assert 0.02 < np.linalg.norm(slide[0]) <= ContactConfig().most_rest_shift + 1e-9
 
 
 @pytest.mark.parametrize("scenario", ["carry_together", "let_go"])
