@@ -126,6 +126,25 @@ def test_an_object_nobody_holds_rests_where_it_was_sketched():
     np.testing.assert_allclose(held[..., :3], clip.obj_pose[..., :3], atol=0.01)
 
 
+def test_a_hand_inside_the_object_near_its_span_is_on_its_grip_already():
+    """A generated right hand inside the box 8-10 frames before the artist's span: on its grip
+    there (eased on before), not left to be pushed out of the box; far from the span it is left."""
+    sb, joints, pose = scrambled("carry_together")
+    pose = hold_object(joints, pose, sb)
+    hold = next(c for c in sb.contacts if c.hand == "right" and c.object)
+    person, wrist = sb.agent_index(hold.agent), JOINT_INDEX["r_wrist"]
+    anchors = object_anchors(pose, sb)[:, sb.object_index(hold.object), hold.anchor]
+    sunk = joints.copy()
+    frames = np.arange(hold.start - 10, hold.start - 7)
+    sunk[frames, person, wrist] = pose[frames, 0, :3] + (0.0, sb.objects[0].spec.size[1] / 2, 0.0)   # at its centre
+    reached = reach_contacts(sunk, object_anchors(pose, sb), sb, ContactConfig(), pose)
+    gap = np.linalg.norm(reached[:, person, wrist] - anchors, axis=-1)
+    assert gap[frames].max() < 0.01
+    far = hold.start - 10 - ContactConfig().blend_frames - 2
+    np.testing.assert_allclose(reached[:far, person, wrist], sunk[:far, person, wrist])
+    np.testing.assert_allclose(bone_lengths(reached), bone_lengths(sunk), atol=1e-9)
+
+
 def test_a_resting_object_slides_out_of_the_legs_of_a_person_who_stands_in_it():
     """The sketch puts a box where a person walks up to it: at their closest the person's knees
     stand 8 cm inside it. It slides along the ground (the same place all through: it rests) by
