@@ -8,7 +8,7 @@ it sinks; the push eases in and out over the frames around (none while the hand 
 its grip), and the elbow goes to the place nearest its own that keeps both arm bones' lengths.
 The push eases as an envelope of what each frame asks, never less: made exact at each sunk frame
 and smoothed between, a push that came and went over a frame or two left the final steadying a
-pop to smooth, and it smoothed the hand back into the box (on 60 artist-style storyboards, hands
+pop to smooth, and it smoothed the hand back into the box (60 artist-style storyboards: something
 more than 2 cm inside an object in 65% of them; as an envelope, 55%, with no more jumps).
 """
 from __future__ import annotations

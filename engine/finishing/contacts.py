@@ -93,7 +93,7 @@ def _held_span(c: Contact, wrist: np.ndarray, obj_pose: np.ndarray | None, story
     within `sunk_frames` of it at which the generated wrist (N, 3) lies inside the object (at
     obj_pose (N, O, 7)). A hand the artist's span has not reached yet, or has let go of, went
     through the box or under a table's top and was pushed out with a pop; on its grip, it waits
-    there (artist-style storyboards with no hand over 2 cm inside an object 47 -> 53%)."""
+    there (artist-style storyboards with nothing over 2 cm inside an object 47 -> 53%)."""
     if obj_pose is None:
         return c.start, c.end
     o = storyboard.object_index(c.object)

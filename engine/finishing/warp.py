@@ -131,10 +131,10 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     ray (the viewing direction: the sketch camera is orthographic). Least squares chooses the
     depths: every sketched joint keeps the depth difference the generated pose gives it from its
     nearest sketched ancestor, every foot the generated pose stands on (within `stance_tolerance`
-    of its lower foot) stands on the ground, and, weakly, every bone keeps its length. Bone lengths alone decide little: a bone near the
-    sketch plane 1 cm shorter than drawn is sqrt(2 L dL) deep, 10 cm for a thigh, and the
-    decoder's bones are ~3% off. With a level camera the ground fixes no depth; the generated
-    depths stay."""
+    of its lower foot) stands on the ground, and, weakly, every bone keeps its length. Bone
+    lengths alone decide little: a bone near the sketch plane 1 cm shorter than drawn is
+    sqrt(2 L dL) deep, 10 cm for a thigh, and the decoder's bones are ~3% off. With a level
+    camera the ground fixes no depth; the generated depths stay."""
     right, up, back = camera.basis()
     origin = np.asarray(camera.target) + uv[:, :1] * right + uv[:, 1:2] * up          # (22, 3) on the rays
     depth = (joints - origin) @ back                                                 # (22,) generated
