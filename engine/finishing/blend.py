@@ -5,7 +5,8 @@ A correction (the finished motion less the generated one) that switches on in on
 swings from one plant's to the next in two, shows as a pop however smooth the generated motion
 is. `smooth_correction` keeps the correction exactly on the frames that are held and makes it
 as smooth as it can elsewhere (least second differences) while staying near what the stage
-asked for: a Whittaker smoother with hard constraints, one banded solve (`smooth_path`).
+asked for: a Whittaker smoother with hard constraints, one banded solve (`smooth_path`). A push
+out of something (`eased_push`) must never fall short instead: it eases as an envelope.
 """
 from __future__ import annotations
 
@@ -13,7 +14,9 @@ from collections.abc import Callable
 
 import numpy as np
 from scipy.linalg import solveh_banded
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
+from ..geometry.rotations import normalize
 from ..synth.trajectory import smoothstep
 
 HELD_WEIGHT = 1e8     # a held frame's weight against the smoothness: held to far below a millimetre
@@ -44,6 +47,18 @@ def smooth_correction(correction: np.ndarray, held: np.ndarray, stiffness: float
     out = smooth_path(correction, np.where(held, HELD_WEIGHT, 1.0), stiffness)
     out[held] = correction[held]              # exactly, not to the solver's 1e-7
     return out
+
+
+def eased_push(push: np.ndarray, frames: float) -> np.ndarray:
+    """Pushes (N, 3) out of something, eased over about `frames` frames and never shorter than
+    asked: their length the larger of its own and its smoothed running maximum, along their
+    smoothed direction. Exact at the frames that asked and smoothed between, a push that came and
+    went over a frame or two was a pop that later smoothing halved, putting back what it pushed out."""
+    length = np.linalg.norm(push, axis=-1)
+    window = 2 * int(np.ceil(frames)) + 1
+    envelope = np.maximum(gaussian_filter1d(maximum_filter1d(length, window), frames, mode="nearest"), length)
+    direction = gaussian_filter1d(push, frames, axis=0, mode="nearest")
+    return np.where(np.linalg.norm(direction, axis=-1, keepdims=True) > 1e-9, envelope[:, None] * normalize(direction), 0.0)
 
 
 def spike(path: np.ndarray) -> np.ndarray:

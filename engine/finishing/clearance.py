@@ -6,20 +6,20 @@ before a hold, or off it after, travels from where the generated hand was: often
 into an object further than its own radius is pushed out along the surface normal by as much as
 it sinks; the push eases in and out over the frames around (none while the hand holds: it is on
 its grip), and the elbow goes to the place nearest its own that keeps both arm bones' lengths.
-The push eases as an envelope of what each frame asks, never less: made exact at each sunk frame
-and smoothed between, a push that came and went over a frame or two left the final steadying a
-pop to smooth, and it smoothed the hand back into the box (60 artist-style storyboards: something
-more than 2 cm inside an object in 65% of them; as an envelope, 55%, with no more jumps).
+The push eases as an envelope of what each frame asks, never less (blend.eased_push): made exact
+at each sunk frame and smoothed between, it left the final steadying a pop to smooth, which put
+the hand back into the box (60 artist-style storyboards: something more than 2 cm inside an object
+in 65% of them; as an envelope, 55%, with no more jumps).
 """
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from ..body import JOINT_RADII
-from ..geometry.rotations import normalize, quat_to_matrix
+from ..geometry.rotations import quat_to_matrix
 from ..objects import ObjectSpec, world_to_local
 from ..storyboard import Storyboard
+from .blend import eased_push
 from .limbs import LIMBS, on_circle
 
 ARMS = LIMBS[2:]     # (shoulder, elbow, wrist) left, right
@@ -36,21 +36,11 @@ def _outward(points: np.ndarray, obj_pose: np.ndarray, spec: ObjectSpec) -> tupl
     return sdf, grad @ np.swapaxes(quat_to_matrix(obj_pose[:, 3:]), -1, -2)
 
 
-def _eased(push: np.ndarray, frames: float) -> np.ndarray:
-    """Pushes (N, 3) eased over about `frames` frames: their length the larger of its own and its
-    smoothed running maximum, along their smoothed direction."""
-    length = np.linalg.norm(push, axis=-1)
-    window = 2 * int(np.ceil(frames)) + 1
-    envelope = np.maximum(gaussian_filter1d(maximum_filter1d(length, window), frames, mode="nearest"), length)
-    direction = gaussian_filter1d(push, frames, axis=0, mode="nearest")
-    return np.where(np.linalg.norm(direction, axis=-1, keepdims=True) > 1e-9, envelope[:, None] * normalize(direction), 0.0)
-
-
 def clear_hands(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,
                 smooth_frames: float = 1.5) -> np.ndarray:
     """joints (N, H, 22, 3), obj_pose (N, O, 7) -> joints with no wrist deeper in an object than
     its radius allows; only wrists and elbows move, bone lengths kept. The push eases in and out
-    over about `smooth_frames` frames around where a wrist sinks (_eased)."""
+    over about `smooth_frames` frames around where a wrist sinks (blend.eased_push)."""
     out = np.array(joints, float)
     specs = [o.spec for o in storyboard.objects]
     on_grip = storyboard.holding()                                              # (N, H, 2)
@@ -63,7 +53,7 @@ def clear_hands(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
             push += np.maximum(radius - sdf, 0.0)[..., None] * normal
         push[holding] = 0.0
         for h in np.flatnonzero(np.any(push != 0.0, axis=(0, 2))):
-            push[:, h] = _eased(push[:, h], smooth_frames)
+            push[:, h] = eased_push(push[:, h], smooth_frames)
         push[holding] = 0.0
         moved = np.any(push != 0.0, axis=-1)
         if not moved.any():

@@ -29,7 +29,7 @@ from ..storyboard import Storyboard
 from ..synth.props import pose_array
 from ..synth.reach import heading_of, yaw_matrix
 from ..synth.trajectory import blend_yaw, smoothstep
-from .blend import ease_frames, ease_jumps
+from .blend import ease_frames, ease_jumps, eased_push
 from .contacts import ContactConfig, anchor_table, arm_lengths, forward_of, object_anchors, span_weight
 
 GRAVITY = 9.81  # m/s^2
@@ -81,20 +81,23 @@ def _fit_position(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray, yaw: 
 
 
 def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints: np.ndarray,
-                      holding: np.ndarray, iterations: int) -> np.ndarray:
+                      holding: np.ndarray, iterations: int, sigma: float) -> np.ndarray:
     """Push a held object (pos (N, 3), yaw (N,)) out in front of each holder (joints
     (N, H, 22, 3), holding (N, H) bool) until no body sphere but the arms' is inside it: decoded
     hands often hang by the hips, and an object fitted to them would sit in the pelvis. Pushes
-    from holders facing each other cancel (there is no room between them). Returns pos (N, 3)."""
+    from holders facing each other cancel (there is no room between them). The push eases over
+    `sigma` frames as an envelope (blend.eased_push): pushed at one frame or two, the held path's
+    smoothing left a box 11 cm inside a chest. Returns pos (N, 3)."""
     n = len(pos)
     points, radii = body_points(joints)
     points, radii = points[:, :, BODY_SPHERES], radii[BODY_SPHERES]   # (N, H, S, 3), (S,)
     away = forward_of(joints)                                           # (N, H, 3)
+    pushed = pos
     for _ in range(iterations):
-        local = world_to_local(points.reshape(n, -1, 3), pose_array(pos, yaw)).reshape(points.shape)
+        local = world_to_local(points.reshape(n, -1, 3), pose_array(pushed, yaw)).reshape(points.shape)
         depth = np.max(spec.penetration_local(local, radii), axis=-1)  # (N, H)
-        pos = pos + np.sum(np.where(holding, depth, 0)[..., None] * away, axis=1)
-    return pos
+        pushed = pushed + np.sum(np.where(holding, depth, 0)[..., None] * away, axis=1)
+    return pos + eased_push(pushed - pos, sigma) if np.any(pushed != pos) else pos
 
 
 def _rest_clear_of_people(pose: np.ndarray, joints: np.ndarray, held: np.ndarray, spec: ObjectSpec,
@@ -242,8 +245,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     fit_pos = _fit_position(wrists, grips, held, fit_yaw)
     fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
     fit_pos = _within_reach_across(fit_pos, fit_yaw, joints, grips, held, config)
-    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding,
-                                config.clear_iterations)
+    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding, config.clear_iterations, config.smooth_sigma)
     fit_yaw = _eased_handovers(np.unwrap(fit_yaw), held, grips, config)
 
     # Holds fewer frames apart than a lift takes are one, and so is a hold that starts or ends that
