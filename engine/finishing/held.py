@@ -245,7 +245,8 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     fit_pos = _fit_position(wrists, grips, held, fit_yaw)
     fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
     fit_pos = _within_reach_across(fit_pos, fit_yaw, joints, grips, held, config)
-    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding, config.clear_iterations, config.smooth_sigma)
+    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding, config.clear_iterations,
+                                config.held_clear_frames)
     fit_yaw = _eased_handovers(np.unwrap(fit_yaw), held, grips, config)
 
     # Holds fewer frames apart than a lift takes are one, and so is a hold that starts or ends that
