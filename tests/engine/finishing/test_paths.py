@@ -29,6 +29,28 @@ def test_follow_paths_puts_the_pelvis_on_its_stroke_and_leaves_the_keyposes_wher
         np.testing.assert_allclose(moved[frames, h], keyed[frames, h], atol=1e-9)
 
 
+def test_a_pelvis_on_its_stroke_that_bows_in_depth_moves_a_share_of_the_way_back(scene):
+    """The motion on its strokes in the sketch plane, but bowed 30 cm along the camera ray between
+    the keys (a sketch cannot see it; another view can): a quarter of the way to the lifted
+    stroke's depth (PathConfig.depth_share), the sketch plane unchanged."""
+    clip, sb = scene
+    joints, offsets = consistent_skeleton(clip.joints.astype(float))
+    back = sb.camera.basis()[2]
+    keyed = warp_to_keyposes(joints, offsets, sb)
+    h, frames = 0, key_frames(sb)[0]
+    bow = np.zeros(len(keyed))
+    a, b = frames[1], frames[2]
+    bow[a:b + 1] = 0.3 * np.sin(np.linspace(0.0, np.pi, b - a + 1))
+    bowed = keyed.copy()
+    bowed[:, h] += bow[:, None, None] * back
+    depth = lambda j: (j[:, h, 0] - keyed[:, h, 0]) @ back
+    plain = follow_paths(keyed, sb)
+    moved = follow_paths(bowed, sb)
+    left = (depth(moved) - depth(plain))[(a + b) // 2] / 0.3
+    assert 1.0 - PathConfig().depth_share - 0.1 < left < 1.0 - PathConfig().depth_share + 0.1
+    np.testing.assert_allclose(sb.camera.project(moved[:, h, 0]), sb.camera.project(plain[:, h, 0]), atol=0.03)
+
+
 def test_a_stroke_keyed_only_at_its_start_is_walked_to_its_end(scene):
     """The people stand still in the generated motion; their pelvis strokes (keys only at the
     first frame) still take them from the strokes' first points to their last, going on evenly."""
