@@ -99,7 +99,7 @@ def _reach(points: np.ndarray, mask: np.ndarray, end: int, target: np.ndarray, l
         points[end] = target
         return
     old_end = points[end].copy()
-    limb = np.linalg.norm(points[mid] - points[root]) + np.linalg.norm(points[end] - points[mid])
+    limb = _limb(points, end)
     grow = np.clip(np.linalg.norm(target - points[root]), limb, max(longest, limb)) / max(limb, 1e-12)
     elbow = points[root] + grow * (points[mid] - points[root])
     points[mid], points[end] = two_bone_2d(points[root], elbow, elbow + grow * (points[end] - points[mid]), target)
@@ -114,12 +114,12 @@ def _lean_towards(points: np.ndarray, mask: np.ndarray, wrist: int, target: np.n
     coming no closer to it than LEAN_HEIGHT of its distance (a reach for the floor folded the
     spine in two); unchanged when the arm reaches already, or the upper body is unplaced or
     pinned (a pinned wrist re-reaches its place after)."""
-    shoulder, elbow = LIMB_ENDS[wrist]
+    shoulder = LIMB_ENDS[wrist][0]
     root, chain = BENDS[CHEST]
     upper = SUBTREE[chain[0]]
     if not mask[[root, *upper]].all() or set(pinned) & (set(upper) - set(WRISTS)):
         return points
-    arm = max(np.linalg.norm(points[elbow] - points[shoulder]) + np.linalg.norm(points[wrist] - points[elbow]), longest)
+    arm = max(_limb(points, wrist), longest)
     upright = points[CHEST] - points[root]
     height = float(np.linalg.norm(upright))
     out = points
@@ -158,9 +158,8 @@ def _keep_hand(points: np.ndarray, mask: np.ndarray, before: np.ndarray, wrist: 
     """The other hand, which a lean carried off, back where it was (in place; its arm re-solved)
     where its arm still reaches that: as an IK rig's hand control, it stays where the artist put it
     (carried along, a left hand placed first moved 8 cm as the right one was dragged beyond reach)."""
-    shoulder, elbow = LIMB_ENDS[wrist]
-    arm = np.linalg.norm(points[elbow] - points[shoulder]) + np.linalg.norm(points[wrist] - points[elbow])
-    if mask[wrist] and np.linalg.norm(before[wrist] - points[shoulder]) <= arm:
+    shoulder = LIMB_ENDS[wrist][0]
+    if mask[wrist] and np.linalg.norm(before[wrist] - points[shoulder]) <= _limb(points, wrist):
         _reach(points, mask, wrist, before[wrist])
 
 

@@ -317,9 +317,9 @@ def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.nd
     """Poses (M, 22, 3) with one leg (side 0 left, 1 right) re-solved from its fixed hip by exact
     two-bone IK so that the foot joint, riding rigidly on the ankle, reaches foot_goal (M, 3);
     a goal beyond STRAIGHTEST of the leg's reach gets the leg reaching towards it -> (M, 22, 3).
-    The M poses are frames in time order: the knee bends the way it bends now (off the old hip-ankle line, so a foot
-    planted ahead cannot flip it backwards), towards the facing as the leg straightens, turning
-    smoothly over the frames (steady_pole)."""
+    The M poses are frames in time order: the knee bends the way it bends now (off the old
+    hip-ankle line, so a foot planted ahead cannot flip it backwards), towards the facing as the
+    leg straightens, turning smoothly over the frames (steady_pole)."""
     hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
     out = poses.copy()
     foot_offset = poses[:, toe] - poses[:, ankle]

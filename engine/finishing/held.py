@@ -39,6 +39,12 @@ BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
                         + [child not in _ARM for _, child in BONES])
 
 
+def _body_spheres(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """joints (N, H, 22, 3) -> the BODY_SPHERES' centres (N, H, S, 3) and radii (S,)."""
+    points, radii = body_points(joints)
+    return points[:, :, BODY_SPHERES], radii[BODY_SPHERES]
+
+
 def _yaw_of(quat: np.ndarray) -> np.ndarray:
     """Heading of a pose's local +X about +Y: (..., 4) wxyz -> (...)."""
     x_axis = quat_to_matrix(quat)[..., :, 0]
@@ -89,8 +95,7 @@ def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints
     `sigma` frames as an envelope (blend.eased_push): pushed at one frame or two, the held path's
     smoothing left a box 11 cm inside a chest. Returns pos (N, 3)."""
     n = len(pos)
-    points, radii = body_points(joints)
-    points, radii = points[:, :, BODY_SPHERES], radii[BODY_SPHERES]   # (N, H, S, 3), (S,)
+    points, radii = _body_spheres(joints)
     away = forward_of(joints)                                           # (N, H, 3)
     pushed = pos
     for _ in range(iterations):
@@ -111,8 +116,7 @@ def _rest_clear_of_people(pose: np.ndarray, joints: np.ndarray, held: np.ndarray
     still = np.linalg.norm(np.diff(pose[:, :3], axis=0), axis=-1) < 1e-6
     resting = (np.concatenate([[True], still]) & np.concatenate([still, [True]]) & ~held.any(axis=1)
                & (np.abs(pose[:, 1] - config.rest_height) < 1e-6))
-    points, radii = body_points(joints)
-    points, radii = points[:, :, BODY_SPHERES], radii[BODY_SPHERES]   # (N, H, S, 3), (S,)
+    points, radii = _body_spheres(joints)
     shift, frames, k = np.zeros((n, 3)), np.arange(n), config.lift_frames
     for start, end in true_spans(resting):
         bodies = points[start:end + 1].reshape(-1, 3)

@@ -14,7 +14,6 @@ as it was; so is a frame whose held hand the smoothed body could no longer reach
 from __future__ import annotations
 
 from collections.abc import Sequence
-
 from dataclasses import dataclass
 from typing import ClassVar
 
