@@ -105,13 +105,37 @@ def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints
     return pos + eased_push(pushed - pos, sigma) if np.any(pushed != pos) else pos
 
 
-def _rest_clear_of_people(pose: np.ndarray, joints: np.ndarray, held: np.ndarray, spec: ObjectSpec,
-                          config: ContactConfig) -> np.ndarray:
+def _within_holders_reach(move: np.ndarray, place: np.ndarray, frames: list[int], joints: np.ndarray,
+                          grips: np.ndarray, held: np.ndarray, config: ContactConfig) -> np.ndarray:
+    """A resting object's slide move (3,) from place (7,), shortened (in tenths) until every grip held
+    at `frames` (the frames just before and after the rest) lies at most `rest_reach_slack` further
+    beyond its holder's reach than it did unmoved. joints (N, H, 22, 3); grips, held as in _hold_one."""
+    n, h = joints.shape[:2]
+    if not frames:
+        return move
+    shoulders = joints[frames][:, :, list(SHOULDERS)].reshape(len(frames), 2 * h, 3)
+    reach = config.reach * arm_lengths(joints[frames]).reshape(len(frames), 2 * h)
+    turned = np.einsum("ij,fkj->fki", quat_to_matrix(place[3:]), grips[frames])   # (F, 2H, 3)
+
+    def beyond(t: float) -> np.ndarray:
+        at = place[:3] + t * move + turned
+        return np.where(held[frames], np.maximum(np.linalg.norm(at - shoulders, axis=-1) - reach, 0.0), 0.0)
+
+    unmoved = beyond(0.0)
+    t = next((t for t in np.linspace(1.0, 0.0, 11) if np.all(beyond(t) <= unmoved + config.rest_reach_slack)), 0.0)
+    return t * move
+
+
+def _rest_clear_of_people(pose: np.ndarray, joints: np.ndarray, grips: np.ndarray, held: np.ndarray,
+                          spec: ObjectSpec, config: ContactConfig) -> np.ndarray:
     """A resting object's pose (N, 7) slid along the ground, over each stretch it lies still and
     unheld (held (N, 2H)), by the least it takes to clear every body sphere but the arms' (which
-    reach for it) of joints (N, H, 22, 3), at most `most_rest_shift`, eased in and out over
-    `lift_frames` around the stretch. The sketch puts boxes and tables where people walk up to
-    them; a knee stood 8-15 cm inside a box drawn on the floor before its pick-up."""
+    reach for it) of joints (N, H, 22, 3), at most `most_rest_shift` and no further out of the
+    reach of the hands that hold it just before or after (grips (N, 2H, 3) local), eased in and
+    out over `lift_frames` around the stretch. The sketch puts boxes and tables where people walk
+    up to them; a knee stood 8-15 cm inside a box drawn on the floor before its pick-up (and a
+    table slid 20 cm from the knees of two people shaking hands over it came out of one carrier's
+    reach as they lifted it)."""
     n = len(pose)
     still = np.linalg.norm(np.diff(pose[:, :3], axis=0), axis=-1) < 1e-6
     resting = (np.concatenate([[True], still]) & np.concatenate([still, [True]]) & ~held.any(axis=1)
@@ -130,6 +154,8 @@ def _rest_clear_of_people(pose: np.ndarray, joints: np.ndarray, held: np.ndarray
             away = normalize((placed[:3] + (0.0, spec.size[1] / 2, 0.0) - bodies) * (1.0, 0.0, 1.0))
             move = move + depth.max() * normalize(np.sum(np.maximum(depth, 0.0)[:, None] * away, axis=0))
             move *= min(1.0, config.most_rest_shift / max(float(np.linalg.norm(move)), 1e-9))
+        holds = [f for f in (start - 1, end + 1) if 0 <= f < n and held[f].any()]
+        move = _within_holders_reach(move, pose[start], holds, joints, grips, held, config)
         weight = np.clip(np.minimum(frames - (start - k), end + k - frames) / k, 0.0, 1.0)   # 1 over the stretch
         shift += smoothstep(weight)[:, None] * move
     out = pose.copy()
@@ -235,7 +261,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     if not spans:  # never held: a still object where it was sketched (else decoded), on the ground
         place = rests[0] if rests[0] is not None else np.median(decoded[:, :3], axis=0)
         return _rest_clear_of_people(pose_array(np.tile(_grounded(place, config), (n, 1)), np.full(n, still_yaw)),
-                                     joints, held, spec, config)
+                                     joints, grips, held, spec, config)
 
     fit_yaw, defined = _fit_yaw(wrists, grips, held, config.min_spread)
     # One hand cannot turn the object: keep the last defined yaw (before any, the first one).
@@ -307,7 +333,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
             w = smoothstep(np.arange(1, n - end) / fall)[:, None] * (1.0, 0.0, 1.0)
             pos[end + 1:] += w * (landing - pos[end + 1:])
         yaw[end + 1:] = held_yaw[-1]
-    return _rest_clear_of_people(pose_array(pos, yaw), joints, held, spec, config)
+    return _rest_clear_of_people(pose_array(pos, yaw), joints, grips, held, spec, config)
 
 
 def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard,

@@ -7,7 +7,7 @@ import pytest
 from engine.body import body_points
 from engine.controls import build_controls
 from engine.finishing.contacts import ContactConfig, object_anchors, reach_contacts
-from engine.finishing.held import BODY_SPHERES, _within_reach_across, _yaw_of, hold_object, step_within_reach
+from engine.finishing.held import BODY_SPHERES, _within_holders_reach, _within_reach_across, _yaw_of, hold_object, step_within_reach
 from engine.metrics import anchor_error
 from engine.objects import ObjectSpec, world_to_local
 from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
@@ -170,6 +170,27 @@ def test_a_resting_object_slides_out_of_the_legs_of_a_person_who_stands_in_it():
     slide = held[:, 0, :3] - clip.obj_pose[:, 0, :3]
     assert np.ptp(slide, axis=0).max() < 1e-9 and abs(slide[0, 1]) < 1e-9          # one place, on the ground
     assert 0.02 < np.linalg.norm(slide[0]) <= ContactConfig().most_rest_shift + 1e-9
+
+
+def test_a_resting_object_slides_no_further_out_of_reach_of_the_hands_that_take_it_next():
+    """A box a person's right hand takes right after it rests: a slide of 0.5 m away from the
+    person is cut short where the grip would lie over rest_reach_slack beyond the arm's reach;
+    with no hands to take it, the slide is whole."""
+    config = ContactConfig()
+    joints = rest_pose()[None, None].repeat(3, axis=0)                       # (3, 1, 22, 3), facing +Z
+    shoulder = joints[0, 0, JOINT_INDEX["r_shoulder"]]
+    place = np.array([shoulder[0], 0.0, 0.35, 1.0, 0.0, 0.0, 0.0])           # grip 0.35 m ahead, at the box's origin
+    grips = np.zeros((3, 2, 3))
+    grips[..., 1] = shoulder[1]                                              # at shoulder height
+    held = np.zeros((3, 2), bool)
+    held[2, 1] = True                                                        # the right hand, at frame 2
+    away = _within_holders_reach(np.array([0.0, 0.0, 0.5]), place, [2], joints, grips, held, config)
+    grip = place[:3] + away + grips[2, 1]
+    reach = config.reach * np.linalg.norm(joints[0, 0, JOINT_INDEX["r_elbow"]] - shoulder) + config.reach * np.linalg.norm(
+        joints[0, 0, JOINT_INDEX["r_wrist"]] - joints[0, 0, JOINT_INDEX["r_elbow"]])
+    assert 0.0 < away[2] < 0.5 and np.linalg.norm(grip - shoulder) <= reach + config.rest_reach_slack + 1e-9
+    np.testing.assert_allclose(_within_holders_reach(np.array([0.0, 0.0, 0.5]), place, [], joints, grips, held, config),
+                               [0.0, 0.0, 0.5])                              # nobody takes it: the whole slide
 
 
 @pytest.mark.parametrize("scenario", ["carry_together", "let_go"])
