@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry.rotations import kabsch, normalize, rotation_from_unit
+from .geometry.rotations import kabsch, normalize, rotation_between
 
 JOINT_NAMES = (
     "pelvis", "l_hip", "r_hip", "spine1", "l_knee", "r_knee", "spine2", "l_ankle", "r_ankle",
@@ -117,7 +117,6 @@ def _ik_levels() -> tuple:
 
 
 _IK_LEVELS = _ik_levels()
-_LEAVES = [j for j in range(NUM_JOINTS) if not CHILDREN[j]]
 
 
 def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS) -> np.ndarray:
@@ -128,11 +127,9 @@ def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS) -
     child; joints with several children (pelvis, spine3) get the Kabsch fit of all child
     bones; leaf joints get the identity. Exact when bone geometry matches `offsets`.
     """
-    directions = np.broadcast_to(normalize(offsets), joints.shape)   # normalized once, on the small array
     offsets = np.broadcast_to(offsets, joints.shape)
     lead = joints.shape[:-2]
-    local = np.zeros(lead + (NUM_JOINTS, 3, 3))   # every joint but the leaves is set below
-    local[..., _LEAVES, :, :] = np.eye(3)
+    local = np.broadcast_to(np.eye(3), lead + (NUM_JOINTS, 3, 3)).copy()
     glob = np.empty(lead + (NUM_JOINTS + 1, 3, 3))   # the extra last entry is the root's parent, index -1
     glob[..., NUM_JOINTS, :, :] = np.eye(3)
     for chain, parents, kids, branching in _IK_LEVELS:
@@ -140,7 +137,7 @@ def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS) -
             parent_glob = glob[..., parents, :, :]
             # Child bone directions expressed in the parent's frame (undo the parent's rotation).
             target = ((joints[..., kids, :] - joints[..., chain, :])[..., None, :] @ parent_glob)[..., 0, :]
-            R_local = rotation_from_unit(directions[..., kids, :], target)
+            R_local = rotation_between(offsets[..., kids, :], target)
             local[..., chain, :, :] = R_local
             glob[..., chain, :, :] = parent_glob @ R_local
         for j in branching:

@@ -31,7 +31,6 @@ BONE_PARENTS, BONES = BODY_BONES.T                  # (21,) each bone's parent a
 TO_CHILD = np.eye(NUM_JOINTS)[:, BONES]             # (22, 21): bone b's child end
 TO_PARENT = np.eye(NUM_JOINTS)[:, BONE_PARENTS]     # (22, 21): bone b's parent end
 JOINT_BONES = TO_CHILD.sum(1) + TO_PARENT.sum(1)    # (22,) bones meeting at each joint
-TO_ENDS = np.concatenate([TO_PARENT, TO_CHILD], 1)  # (22, 42): the parent ends', then the child ends' shares
 
 LEGS_END = [*FEET, *ANKLES]   # feet, then ankles
 
@@ -84,16 +83,11 @@ def _restore_bones(joints: np.ndarray, lengths: np.ndarray, free: np.ndarray, it
     ends = np.maximum(child + parent, 1.0)
     pull_child, pull_parent = (child / ends)[..., None], (parent / ends)[..., None]
     spread = np.where(free, 1.0 / JOINT_BONES, 0.0)[..., None]                           # (M, 22, 1)
-    # Both ends' shares as one (42, M * 3) operand of one matrix product: per frame, a (22, 21)
-    # product on a stack of frames is many small ones.
-    pulls = np.concatenate([pull_parent, -pull_child], axis=1).transpose(1, 0, 2)      # (42, M, 1)
-    m = len(out)
     for _ in range(iterations):
         bone = out[:, BONES] - out[:, BONE_PARENTS]                                     # (M, 21, 3)
-        length = np.maximum(np.sqrt(np.sum(bone * bone, axis=-1, keepdims=True)), 1e-9)
-        error = ((1.0 - lengths[:, None] / length) * bone).transpose(1, 0, 2)           # too long by (21, M, 3)
-        shares = (pulls * np.concatenate([error, error])).reshape(2 * len(BONES), -1)
-        out += spread * (TO_ENDS @ shares).reshape(NUM_JOINTS, m, 3).transpose(1, 0, 2)
+        length = np.maximum(np.linalg.norm(bone, axis=-1, keepdims=True), 1e-9)
+        error = (1.0 - lengths[:, None] / length) * bone                                # too long by
+        out += spread * (TO_PARENT @ (pull_parent * error) - TO_CHILD @ (pull_child * error))
     return out
 
 
@@ -128,14 +122,9 @@ def _steady_person(path: np.ndarray, held: np.ndarray, offsets: np.ndarray, conf
     if not popping.any():
         return path
     goal = path.copy()
-    weights = np.where(held | ~popping[:, None], HELD_WEIGHT, config.popping_weight)   # (N, 22)
-    # Joints held on the same frames share one banded solve (most are held on none).
-    patterns, group = np.unique(weights, axis=1, return_inverse=True)
-    group = group.ravel()   # (22,) (numpy 2.0.0 shaped it otherwise)
-    for g, weight in enumerate(patterns.T):
-        joints = np.flatnonzero(group == g)
-        smoothed = smooth_path(path[:, joints].reshape(len(path), -1), weight, config.smooth_frames ** 4)
-        goal[:, joints] = smoothed.reshape(len(path), len(joints), 3)
+    for j in range(22):
+        weight = np.where(held[:, j] | ~popping, HELD_WEIGHT, config.popping_weight)
+        goal[:, j] = smooth_path(path[:, j], weight, config.smooth_frames ** 4)
     # Nor does it lower a foot in the air below swing_floor: it would brush the floor as it travels.
     goal[:, LEGS_END, 1] = np.maximum(goal[:, LEGS_END, 1], np.minimum(path[:, LEGS_END, 1], config.swing_floor))
     # Back on the person's skeleton (IK keeps the smoothed bone directions), held hands and feet

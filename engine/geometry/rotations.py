@@ -124,13 +124,7 @@ def matrix_to_quat(R: np.ndarray) -> np.ndarray:
 
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Smallest rotation taking direction a to direction b. (..., 3), (..., 3) -> (..., 3, 3)."""
-    return rotation_from_unit(normalize(a), b)
-
-
-def rotation_from_unit(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """rotation_between for an `a` of unit length (IK normalizes its bone offsets once, not per
-    tree level and frame). (..., 3), (..., 3) -> (..., 3, 3)."""
-    b = normalize(b)
+    a, b = normalize(a), normalize(b)
     v = cross(a, b)
     c = np.sum(a * b, axis=-1)
     # Rodrigues without the angle, written out (the finishing's IK calls this most):
