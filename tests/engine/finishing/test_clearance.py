@@ -1,18 +1,17 @@
 """Hands that never go through the objects (engine/finishing/clearance.py)."""
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from engine.clip import MotionClip
 from engine.finishing import finish
 from engine.finishing.clearance import clear_hands
 from engine.objects import world_to_local
 from engine.skeleton import JOINT_INDEX, bone_lengths
 from engine.sketchify import sketchify
-from engine.storyboard import Storyboard
 from engine.synth import synthesize
+
+from .saved import saved_generation
 
 WRIST = JOINT_INDEX["r_wrist"]
 
@@ -74,12 +73,7 @@ def test_a_hand_letting_go_into_a_carried_box_stays_out_through_the_last_steadyi
     engine.artist_sketch seed 2; saved): the giver's right hand lets go into the box the partner
     carries on. Pushed out exactly at the frames it sank and smoothed between, the push popped,
     and the final steadying smoothed the hand 5 cm back in; eased as an envelope, it stays out."""
-    here = Path(__file__).parent
-    sb = Storyboard.from_json((here / "handoff_release.json").read_text())
-    saved = np.load(here / "handoff_release.npz")
-    clip = MotionClip.from_joints(saved["joints"], sb.fps, obj_pose=saved["obj_pose"], obj_anchors=saved["obj_anchors"],
-                                  obj_type=np.array([o.spec.type for o in sb.objects]),
-                                  obj_size=np.array([o.spec.size for o in sb.objects], np.float32))
+    sb, clip = saved_generation("handoff_release")
     done = finish(clip, sb)
     joints, pose = done.joints.astype(float), done.obj_pose.astype(float)
     holding = sb.holding()

@@ -5,14 +5,14 @@ from pathlib import Path
 import numpy as np
 
 from engine.bench.animator import pop
-from engine.clip import MotionClip
 from engine.finishing import finish
 from engine.finishing.blend import smooth_correction, smooth_path
 from engine.finishing.limbs import LIMBS, LimbConfig, on_circle, steady_limbs, steady_rotations
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.skeleton import JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
-from engine.storyboard import Storyboard
 from engine.synth import synthesize
+
+from .saved import saved_generation
 
 MIDDLE = [mid for _, mid, _ in LIMBS]
 
@@ -111,10 +111,5 @@ def test_a_knee_left_popping_by_the_steadying_is_smoothed_once_more():
     canvas rig, generation seed 5; saved): after the stages up to the whole-body steadying a
     planted leg's knee still popped 18.7 cm in a frame; a last limb pass brings the clip's
     largest pop to 10 cm (a collar's)."""
-    here = Path(__file__).parent
-    sb = Storyboard.from_json((here / "knee_after_steadying.json").read_text())
-    saved = np.load(here / "knee_after_steadying.npz")
-    clip = MotionClip.from_joints(saved["joints"], sb.fps, obj_pose=saved["obj_pose"], obj_anchors=saved["obj_anchors"],
-                                  phase=saved["phase"], obj_type=np.array([o.spec.type for o in sb.objects]),
-                                  obj_size=np.array([o.spec.size for o in sb.objects], np.float32))
+    sb, clip = saved_generation("knee_after_steadying")
     assert pop(finish(clip, sb).joints.astype(float)) < 0.12
