@@ -27,7 +27,7 @@ Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joi
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -107,8 +107,8 @@ def lasting_as_long(config, fps: float):
 
 def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig()) -> MotionClip:
     """The clip (people in the storyboard's agent order) with its constraints made exact."""
-    config = replace(config, **{part: lasting_as_long(getattr(config, part), clip.fps)
-                                for part in ("warp", "path", "contact", "foot", "limbs", "last_limbs", "steady", "inferred")})
+    config = replace(config, **{f.name: lasting_as_long(getattr(config, f.name), clip.fps) for f in fields(config)
+                                if hasattr(getattr(config, f.name), "DURATIONS")})
     if config.contacts:
         storyboard = with_generated_contacts(clip, storyboard, config.inferred)
     joints = retime_to_keys(np.asarray(clip.joints, float), storyboard)
