@@ -159,18 +159,26 @@ def _arm_runs(frames: np.ndarray, people: np.ndarray) -> list[np.ndarray]:
 
 def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboard: Storyboard,
                    config: ContactConfig = ContactConfig(), obj_pose: np.ndarray | None = None) -> np.ndarray:
-    """Put every contact's wrist on its target by two-bone IK from the fixed shoulder.
+    """Put every contact's wrist on its target (reach_with_arms).
 
     joints (N, H, 22, 3); obj_anchors (N, O, K, 3) (see object_anchors), or None when the
     storyboard has only hand-to-hand contacts. Returns new joints (N, H, 22, 3): elbows and
-    wrists of contact arms move, blended in over `blend_frames` before each span and out after;
-    bone lengths are kept exactly; a target out of reach gets the straightened arm pointing at it.
+    wrists of contact arms move, blended in over `blend_frames` before each span and out after.
     With the objects' poses obj_pose (N, O, 7), a hand the generated motion puts inside an object
-    near its span holds on there too (_held_span), and an elbow whose arm would pass through an
-    object swivels about the shoulder-wrist line to where it does not (or least does).
+    near its span holds on there too (_held_span), and elbows swivel off the objects.
     """
     joints = np.asarray(joints, float)
     target, weight = _contact_targets(joints, obj_anchors, storyboard, config, obj_pose)
+    return reach_with_arms(joints, target, weight, obj_pose, storyboard, config)
+
+
+def reach_with_arms(joints: np.ndarray, target: np.ndarray, weight: np.ndarray, obj_pose: np.ndarray | None = None,
+                    storyboard: Storyboard | None = None, config: ContactConfig = ContactConfig()) -> np.ndarray:
+    """joints (N, H, 22, 3) with each wrist moved `weight` (N, H, 2) of the way to `target`
+    (N, H, 2, 3) by two-bone IK from the fixed shoulder (bone lengths exact; a target out of
+    reach gets the straightened arm pointing at it); the elbow bends the way it bends now,
+    smoothly over frames, and with the objects' poses obj_pose (N, O, 7) of the storyboard's
+    objects swivels off them. -> (N, H, 22, 3)"""
     out = joints.copy()
     forward = forward_of(joints)
     for side in range(2):

@@ -24,9 +24,10 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..camera import StoryboardCamera
-from ..skeleton import FEET, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
+from ..skeleton import FEET, HANDS, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
+from .contacts import reach_with_arms
 from .feet import reach_with_leg
 from .keys import closeness_to_keys, spread
 
@@ -197,13 +198,15 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
     The offsets spread between keys are joint displacements relative to the pelvis, in the
     body's own (heading) frame, so they turn with the body; the skeleton is then refitted, and
     around the keys the legs reach for the displaced feet (the solved keypose's bones are not
-    quite the skeleton's, and a refit from the hips put feet 5 cm under or over the ground). Local
-    rotation offsets would be the textbook choice, but a solved keypose often tilts the IK's
+    quite the skeleton's, and a refit from the hips put feet 5 cm under or over the ground), and the
+    arms for the wrists that the keys place (a figure drawn out of proportion, as an artist's
+    stretched by up to 12%, has bones the skeleton cannot match: the refit left its wrists 4-5 cm
+    off their drawn points). Local rotation offsets would be the textbook choice, but a solved keypose often tilts the IK's
     pelvis frame by 60 degrees or more and the hips back by as much; half of each, between keys,
     folds the legs up off the ground (a carrier crawled through the let_go example)."""
     out = joints.copy()
     n = len(joints)
-    warped = {}                                      # person -> (root (N, 3), target (N, 22, 3), key frames)
+    warped = {}                                      # person -> (root (N, 3), target (N, 22, 3), keyposes)
     for h, agent in enumerate(storyboard.agents):
         keys = sorted((k for k in storyboard.keyposes if k.agent == agent.id and k.mask.any()),
                       key=lambda k: k.frame)
@@ -221,7 +224,7 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         local = moved @ turn[frames]                                             # world -> body frame
         root = joints[:, h, PELVIS] + spread(n, frames, posed[:, PELVIS] - joints[frames, h, PELVIS], config.falloff)
         pose = spread(n, frames, local, config.falloff) * closeness_to_keys(n, frames, config.pose_falloff)[:, None, None]
-        warped[h] = (root, root[:, None] + body + pose @ np.swapaxes(turn, -1, -2), frames)
+        warped[h] = (root, root[:, None] + body + pose @ np.swapaxes(turn, -1, -2), keys)
     if not warped:
         return out
     people = list(warped)                            # the refit, all people at once
@@ -231,8 +234,16 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         # The refit moved the feet (a keypose's solved bones are not quite the skeleton's): around
         # the keys the legs reach for the warped feet. Further out the refit's own legs stay
         # (reaching all along made the steps between keys less natural: FID 0.27 -> 0.40).
-        target, frames = warped[h][1], warped[h][2]
-        near = closeness_to_keys(n, frames, config.falloff)[:, None]
+        target, keys = warped[h][1], warped[h][2]
+        near = closeness_to_keys(n, [k.frame for k in keys], config.falloff)[:, None]
         for side, foot in enumerate(FEET):
             out[:, h] = reach_with_leg(out[:, h], side, out[:, h, foot] + near * (target[:, foot] - out[:, h, foot]))
-    return out
+    # So did the wrists: around the keys that place them, the arms reach for the warped wrists.
+    goal, weight = np.zeros(out.shape[:2] + (2, 3)), np.zeros(out.shape[:2] + (2,))
+    for h in people:
+        target, keys = warped[h][1], warped[h][2]
+        for side, wrist in enumerate(HANDS):
+            placing = [k.frame for k in keys if k.mask[wrist]]
+            if placing:
+                goal[:, h, side], weight[:, h, side] = target[:, wrist], closeness_to_keys(n, placing, config.falloff)
+    return reach_with_arms(out, goal, weight)
