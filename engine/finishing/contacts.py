@@ -173,12 +173,13 @@ def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboar
 
 
 def reach_with_arms(joints: np.ndarray, target: np.ndarray, weight: np.ndarray, obj_pose: np.ndarray | None = None,
-                    storyboard: Storyboard | None = None, config: ContactConfig = ContactConfig()) -> np.ndarray:
+                    storyboard: Storyboard | None = None, config: ContactConfig = ContactConfig(),
+                    elbows: np.ndarray | None = None) -> np.ndarray:
     """joints (N, H, 22, 3) with each wrist moved `weight` (N, H, 2) of the way to `target`
     (N, H, 2, 3) by two-bone IK from the fixed shoulder (bone lengths exact; a target out of
-    reach gets the straightened arm pointing at it); the elbow bends the way it bends now,
-    smoothly over frames, and with the objects' poses obj_pose (N, O, 7) of the storyboard's
-    objects swivels off them. -> (N, H, 22, 3)"""
+    reach gets the straightened arm pointing at it); the elbow bends the way it bends now (or
+    `weight` of the way towards `elbows` (N, H, 2, 3)), smoothly over frames, and with the objects'
+    poses obj_pose (N, O, 7) of the storyboard's objects swivels off them. -> (N, H, 22, 3)"""
     out = joints.copy()
     forward = forward_of(joints)
     for side in range(2):
@@ -188,6 +189,8 @@ def reach_with_arms(joints: np.ndarray, target: np.ndarray, weight: np.ndarray, 
         # Bend the elbow the way it bends now, smoothly over frames; a straight arm bends down and back.
         axis = normalize(goal - shoulder)
         bend = elbow - shoulder
+        if elbows is not None:
+            bend = bend + weight[..., side, None] * (elbows[:, :, side] - elbow)
         bend = bend - np.sum(bend * axis, axis=-1, keepdims=True) * axis
         pole = continuous_pole(steady_pole(bend, -UP - forward), axis)[moving]
         shoulder, elbow, wrist, goal = shoulder[moving], elbow[moving], wrist[moving], goal[moving]

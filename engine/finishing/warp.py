@@ -24,7 +24,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..camera import StoryboardCamera
-from ..skeleton import FEET, HANDS, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
+from ..skeleton import ELBOWS, FEET, HANDS, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
 from .contacts import reach_with_arms
@@ -238,12 +238,15 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         near = closeness_to_keys(n, [k.frame for k in keys], config.falloff)[:, None]
         for side, foot in enumerate(FEET):
             out[:, h] = reach_with_leg(out[:, h], side, out[:, h, foot] + near * (target[:, foot] - out[:, h, foot]))
-    # So did the wrists: around the keys that place them, the arms reach for the warped wrists.
+    # So did the wrists: around the keys that place them, the arms reach for the warped wrists,
+    # the elbows bending towards the warped ones.
     goal, weight = np.zeros(out.shape[:2] + (2, 3)), np.zeros(out.shape[:2] + (2,))
+    elbows = out[:, :, list(ELBOWS)].copy()
     for h in people:
         target, keys = warped[h][1], warped[h][2]
         for side, wrist in enumerate(HANDS):
             placing = [k.frame for k in keys if k.mask[wrist]]
             if placing:
                 goal[:, h, side], weight[:, h, side] = target[:, wrist], closeness_to_keys(n, placing, config.falloff)
-    return reach_with_arms(out, goal, weight)
+                elbows[:, h, side] = target[:, ELBOWS[side]]
+    return reach_with_arms(out, goal, weight, elbows=elbows)

@@ -13,7 +13,7 @@ from engine.finishing.steady import SteadyConfig, frame_pops
 from engine.finishing.warp import BODY_PARTS, scale_per_bone, sketched_scales, solve_keypose, warp_to_keyposes
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.metrics import keypose_errors_2d
-from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
+from engine.skeleton import ELBOWS, HANDS, JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
 from engine.sketchify import sketchify
 from engine.synth import synthesize
 
@@ -136,14 +136,18 @@ def test_warp_to_keyposes_passes_through_every_keypose_and_keeps_the_skeleton(sc
 
 def test_the_wrists_of_a_figure_drawn_out_of_proportion_land_on_their_drawn_points(scene):
     """A drawn figure stretched by up to 12% has bones the skeleton cannot match: the refit that
-    keeps the skeleton left the wrists 4-5 cm off their drawn points; the arms reach for them."""
+    keeps the skeleton left the wrists 4-5 cm off their drawn points; the arms reach for them,
+    the elbows bending the way the drawing bends them (3.8 cm off before, 3.0 now)."""
     clip, clean = scene
     sb = hand_drawn(clean, seed=1)
     joints, offsets = consistent_skeleton(disturbed(clip.joints), sb)
     warped = warp_to_keyposes(joints, offsets, sb)
-    misses = [np.linalg.norm(sb.camera.project(warped[k.frame, sb.agent_index(k.agent), j]) - k.points[j])
-              for k in sb.keyposes for j in HANDS if k.mask[j]]
-    assert np.median(misses) < 0.002 and np.mean(misses) < 0.01
+
+    def misses(chain):
+        return [np.linalg.norm(sb.camera.project(warped[k.frame, sb.agent_index(k.agent), j]) - k.points[j])
+                for k in sb.keyposes for j in chain if k.mask[j]]
+    assert np.median(misses(HANDS)) < 0.002 and np.mean(misses(HANDS)) < 0.01
+    assert np.mean(misses(ELBOWS)) < 0.033
     for h in range(2):
         np.testing.assert_allclose(bone_lengths(warped[:, h])[:, 1:],
                                    np.broadcast_to(np.linalg.norm(offsets[h], axis=-1)[1:], (len(warped), 21)),
