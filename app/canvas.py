@@ -254,8 +254,11 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
             self.message.emit("Contact: click an object anchor (side of an object) or another person's hand.")
             return
         self._pending_hand = None
+        before = [c.anchor for c in self._doc.storyboard.contacts] + [contact.anchor]
         self._doc.undo_stack.push(cmd.AddContact(self._doc, contact))
-        self.message.emit(f"Contact added: {cmd.describe_contact(contact)}")
+        moved = "" if [c.anchor for c in self._doc.storyboard.contacts] == before else \
+            " (grips chosen again: one hand to a grip, the left hand on its left)"
+        self.message.emit(f"Contact added: {cmd.describe_contact(self._doc.storyboard.contacts[-1])}{moved}")
 
     def _press_erase(self, uv):
         """Erase what is under the pointer: a joint, else the object key whose outline holds it

@@ -11,6 +11,7 @@ import copy
 import numpy as np
 from PySide6.QtGui import QUndoCommand
 
+from engine.grips import with_grips_fitted
 from engine.objects import ObjectSpec, drawn_size
 from engine.skeleton import FEET, MIRROR
 from engine.storyboard import SPANS, Contact, Keypose, ObjectKey, SceneObject, Storyboard
@@ -296,6 +297,8 @@ class SetText(StoryboardCommand):
 
 # ---- contacts ------------------------------------------------------------------------------------
 class AddContact(StoryboardCommand):
+    """Add a contact, the object holds' grips chosen again where it shares or crosses them
+    (engine.grips: a 2D click on an object's side does not say which of its grips)."""
     touches = ("contacts",)
 
     def __init__(self, document, contact: Contact):
@@ -304,6 +307,7 @@ class AddContact(StoryboardCommand):
 
     def apply(self, sb):
         sb.contacts.append(copy.deepcopy(self._contact))
+        sb.contacts = with_grips_fitted(sb).contacts
 
 
 class DeleteContact(StoryboardCommand):

@@ -3,8 +3,7 @@ copy and paste a pose between keys and agents, mirror, stamp a pose of the libra
 through one undoable command."""
 from __future__ import annotations
 
-from engine.facing import depth_of
-from engine.poses import POSE_NAMES, library_pose
+from engine.poses import POSE_NAMES
 
 from . import commands as cmd
 from .poses import placed_pose, previous_keypose, stamped_pose
@@ -54,8 +53,7 @@ class PoseActions:
 
     def stamp_pose(self, name: str) -> None:
         doc = self.doc
-        points, mask = stamped_pose(doc.storyboard, doc.selection.agent, doc.frame, name)
-        depth = depth_of(library_pose(name), doc.storyboard.camera)     # the library knows its 3D
+        points, mask, depth = stamped_pose(doc.storyboard, doc.selection.agent, doc.frame, name)   # the library knows its 3D
         doc.undo_stack.push(cmd.SetKeypose(doc, doc.selection.agent, doc.frame, points, mask, f"Stamp pose: {name}", depth))
 
     def delete_keypose(self) -> None:

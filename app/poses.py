@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from engine.facing import depth_of, facing, lift
-from engine.poses import library_pose_2d, standing_pose_2d
-from engine.skeleton import FEET, JOINT_INDEX
+from engine.poses import REACHES_FOR, library_pose, library_pose_2d, reach_of, standing_pose_2d
+from engine.skeleton import FEET, JOINT_INDEX, NUM_JOINTS
+from engine.synth.reach import heading_of
 from engine.storyboard import Keypose, Storyboard
 
 
@@ -28,11 +29,36 @@ def new_keypose(sb: Storyboard, agent: str, frame: int) -> tuple[np.ndarray, np.
     return points, np.ones(len(points), bool)
 
 
-def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """(points (22, 2), mask (22,)) of library pose `name` for the agent at `frame`, standing where
-    the agent stands (see `placed_pose`)."""
-    pose = library_pose_2d(name, sb.camera)
-    return placed_pose(sb, agent, frame, pose, np.ones(len(pose), bool))
+def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points (22, 2), mask (22,), depth (22,)) of library pose `name` for the agent at `frame`,
+    standing where the agent stands (see `placed_pose`). A pose that reaches for a person or an
+    object (engine.poses.REACHES_FOR) reaches towards the nearest one drawn then, to its left or
+    right on the sketch (the library's poses all face +Z: a giver on the left held the box out
+    away from the taker)."""
+    mask = np.ones(NUM_JOINTS, bool)
+    points, _ = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera), mask)
+    yaw = _reach_yaw(sb, agent, frame, name, points[0])
+    points, mask = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera, yaw), mask)
+    return points, mask, depth_of(library_pose(name, yaw), sb.camera)
+
+
+def _reach_yaw(sb: Storyboard, agent: str, frame: int, name: str, pelvis: np.ndarray) -> float:
+    """The yaw that turns library pose `name`'s reach to point along the sketch towards the
+    nearest of what it reaches for, seen from `pelvis` (2,): another person (their keypose at
+    `frame`, or the one before) or an object key at `frame`; 0 where there is none."""
+    if REACHES_FOR.get(name) == "person":
+        keys = [next((k for k in sb.keyposes if k.agent == a.id and k.frame == frame), None)
+                or previous_keypose(sb, a.id, frame) for a in sb.agents if a.id != agent]
+        places = [k.points[0] for k in keys if k is not None and k.mask[0]]
+    elif REACHES_FOR.get(name) == "object":
+        places = [key.outline.mean(0) for key in sb.object_keys if key.frame == frame]
+    else:
+        places = []
+    if not places:
+        return 0.0
+    nearest = min(places, key=lambda p: float(np.linalg.norm(p - pelvis)))
+    towards = np.sign(nearest[0] - pelvis[0]) or 1.0
+    return float(heading_of(towards * sb.camera.basis()[0]) - heading_of(reach_of(name)))
 
 
 def placed_pose(sb: Storyboard, agent: str, frame: int, points: np.ndarray, mask: np.ndarray

@@ -7,7 +7,7 @@ import numpy as np
 
 from .camera import StoryboardCamera
 from .skeleton import JOINT_INDEX, rest_pose
-from .synth.reach import two_bone_ik
+from .synth.reach import two_bone_ik, yaw_matrix
 
 J = JOINT_INDEX
 # name -> (pelvis drop (m), {end joint: target relative to the standing pelvis (x left, y up, z forward)})
@@ -25,6 +25,8 @@ _LIBRARY = {
     "wave": (0.0, {"r_wrist": (-0.35, 0.85, 0.1)}),
 }
 POSE_NAMES = tuple(_LIBRARY)
+# What a pose's hands reach for: a stamp turns its reach towards the nearest one drawn then.
+REACHES_FOR = {"hand over": "person", "crouch-reach": "object", "lift": "object", "carry": "object"}
 _LIMBS = {"l_wrist": ("l_shoulder", "l_elbow"), "r_wrist": ("r_shoulder", "r_elbow"),
           "l_ankle": ("l_hip", "l_knee"), "r_ankle": ("r_hip", "r_knee")}
 
@@ -42,10 +44,11 @@ def standing_pose_2d(camera: StoryboardCamera) -> np.ndarray:
     return uv - uv[0]
 
 
-def library_pose(name: str) -> np.ndarray:
+def library_pose(name: str, yaw: float = 0.0) -> np.ndarray:
     """A library pose in 3D (22, 3): the standing figure with its pelvis lowered and its hands and
     feet moved to the pose's places, elbows and knees solved by two-bone IK (elbows bend down
-    and back, knees forward), facing +Z."""
+    and back, knees forward), facing +Z turned by `yaw` radians about the vertical through the
+    pelvis (engine.facing's yaw)."""
     drop, ends = _LIBRARY[name]
     joints = rest_pose().copy()
     for side, sign in (("l_", 1.0), ("r_", -1.0)):                   # arms down, as standing_pose_2d
@@ -65,12 +68,18 @@ def library_pose(name: str) -> np.ndarray:
         joints[mid], joints[J[end]] = two_bone_ik(joints[root], target, upper, lower, pole)
         if "ankle" in end:
             joints[J[end[:2] + "foot"]] = joints[J[end]] + feet[end[:2]]
-    return joints
+    return (joints - standing) @ yaw_matrix(np.array(yaw)).T + standing
 
 
-def library_pose_2d(name: str, camera: StoryboardCamera) -> np.ndarray:
+def reach_of(name: str) -> np.ndarray:
+    """Where library pose `name`'s hands reach, from its pelvis, on the ground plane: (3,)."""
+    joints = library_pose(name)
+    return (joints[[J["l_wrist"], J["r_wrist"]]].mean(0) - joints[J["pelvis"]]) * (1.0, 0.0, 1.0)
+
+
+def library_pose_2d(name: str, camera: StoryboardCamera, yaw: float = 0.0) -> np.ndarray:
     """library_pose seen through the camera, its pelvis where a standing figure's is: (22, 2)."""
-    uv = camera.project(library_pose(name))
+    uv = camera.project(library_pose(name, yaw))
     standing = camera.project(rest_pose()[:1])[0]
     drop = camera.project(rest_pose()[:1] - (0.0, _LIBRARY[name][0], 0.0))[0] - standing
     return uv - uv[0] + drop

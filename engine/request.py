@@ -3,7 +3,8 @@
     request = Request.build(storyboard, config)   # the command line, the app, the benchmark, the demo
     view = request.for_model(stride)               # the sampler: the model's rate, padded, its controls
 
-The storyboard stays as drawn (its frames, its frame rate): finishing and the output use it. The
+The storyboard stays as drawn (its frames, its frame rate), but for hands drawn on one grip at once
+(engine.grips: one hand to a grip, the left hand on its left): finishing and the output use it. The
 networks animate at MODEL_FPS in fixed slots (engine.models.slots); `for_model` retimes the
 storyboard to that rate, pads it to the decoder's frame stride and builds its controls once, for
 the network's conditioning and the guidance energies alike.
@@ -16,6 +17,7 @@ from functools import cached_property
 import numpy as np
 
 from .controls import Controls, build_controls
+from .grips import with_grips_fitted
 from .models.slots import MODEL_FPS, NUM_HUMANS, NUM_OBJECTS, fixed_controls
 from .sampling.config import SamplerConfig, SamplerError
 from .storyboard import Storyboard
@@ -51,7 +53,7 @@ class Request:
         if len(storyboard.agents) > NUM_HUMANS or len(storyboard.objects) > NUM_OBJECTS:
             raise SamplerError(f"the model animates at most {NUM_HUMANS} people and {NUM_OBJECTS} object; the "
                                f"storyboard has {len(storyboard.agents)} people and {len(storyboard.objects)} objects")
-        return cls(storyboard, config)
+        return cls(with_grips_fitted(storyboard), config)
 
     @property
     def method(self) -> str:

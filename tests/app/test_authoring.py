@@ -104,7 +104,7 @@ def test_a_box_hand_off_in_at_most_25_drags(qtbot, make_window):
             artist.stamp(poses[agent][frame])
             hip = artist.pose(agent, frame)[pelvis].copy()
             target = np.array([places[agent][frame], hip[1]])
-            if np.linalg.norm(target - hip) > 0.05:
+            if np.linalg.norm(target - hip) > 0.02:
                 artist.sketch([hip, (hip + target) / 2, target])
     # The box: a rectangle between A's hands at frame 0, and its path to the right.
     artist.frame(0)

@@ -127,6 +127,30 @@ def test_object_contact_and_erase_tools(qtbot, canvas):
     doc.storyboard.validate()
 
 
+def test_a_grip_another_hand_holds_then_gives_the_nearest_free_one(qtbot, canvas):
+    """At a hand-off an artist clicks the box's ends for both people; two hands cannot hold one
+    grip, so the second takes the free grip next to it (finishing put the giver's hands on the
+    taker's, 58 cm from where they were drawn)."""
+    doc = canvas._doc
+    doc.replace_storyboard(sample_storyboard(), None)
+    doc.set_frame(60)
+    doc.set_span((60, 80))
+    doc.set_tool("contact")
+    messages = []
+    canvas.message.connect(messages.append)
+    box = doc.storyboard.object_keys[0].outline
+    grips = canvas._anchors_2d("box1", box)
+    held = len(doc.storyboard.contacts)
+    for agent, side in (("A", "r_wrist"), ("B", "l_wrist")):
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, cmd.find_keypose(doc.storyboard, agent, 60).points[JOINT_INDEX[side]]))
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, grips[3]))
+    a, b = doc.storyboard.contacts[held:]
+    assert (a.agent, a.anchor, b.agent) == ("A", 3, "B") and b.anchor != 3
+    assert messages[-1].endswith("(grips chosen again: one hand to a grip, the left hand on its left)")
+    doc.undo_stack.undo()
+    assert [c.anchor for c in doc.storyboard.contacts] == [c.anchor for c in doc.storyboard.contacts[:held]] + [3]
+
+
 def test_a_contact_line_goes_to_the_generated_grip_between_object_keys(qtbot, canvas):
     doc = canvas._doc
     sb = sample_storyboard()

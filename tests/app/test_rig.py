@@ -236,6 +236,33 @@ def test_a_library_pose_is_stamped_where_the_figure_stands(qtbot, make_window):
     assert stamped.points[J["r_wrist"], 1] > stamped.points[J["head"], 1]          # the hand is up
 
 
+def test_a_stamped_hand_over_reaches_towards_the_other_person(qtbot, make_window):
+    """The library's poses face +Z, their hands out to the left on the sketch: a giver on the left
+    held the box out away from the taker. A pose that reaches for someone reaches their way, a
+    pose that reaches for an object the object's, and a standing pose stays as it is."""
+    from engine.facing import depth_of
+    from engine.poses import library_pose
+    window = make_window()
+    doc, canvas = window.doc, window.canvas
+    doc.set_frame(FRAME)
+    doc.set_tool("keypose")
+    for agent, u in (("A", -0.6), ("B", 0.6)):
+        doc.select(agent=agent)
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+    hands = [J["l_wrist"], J["r_wrist"]]
+    for agent, side in (("A", 1), ("B", -1)):
+        doc.select(agent=agent)
+        window.stamp_pose("hand over")
+        key = cmd.find_keypose(doc.storyboard, agent, FRAME)
+        assert np.all(side * (key.points[hands, 0] - key.points[J["pelvis"], 0]) > 0.3)   # 0.5 m out, in profile
+        assert not np.allclose(key.depth, depth_of(library_pose("hand over"), doc.storyboard.camera))
+    window.stamp_pose("stand")
+    key = cmd.find_keypose(doc.storyboard, "B", FRAME)
+    assert np.allclose(key.depth, depth_of(library_pose("stand"), doc.storyboard.camera))
+    window.stamp_pose("lift")                                # no object drawn then: as the library has it
+    assert np.allclose(cmd.find_keypose(doc.storyboard, "B", FRAME).depth, depth_of(library_pose("lift"), doc.storyboard.camera))
+
+
 def test_copy_a_pose_and_paste_it_on_the_other_agent_where_it_stands(qtbot, make_window):
     from engine.skeleton import FEET
     window = make_window()

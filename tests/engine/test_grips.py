@@ -1,0 +1,67 @@
+"""Grips two hands cannot share (engine/grips.py)."""
+from engine.grips import free_anchors, held_by_others, with_grips_fitted
+from engine.request import Request
+from engine.storyboard import Storyboard
+
+
+def hand_off() -> Storyboard:
+    """The bundled hand-off (A holds grips 2 and 0 until frame 48, B grips 1 and 3 from 44)."""
+    return Storyboard.load("resources/examples/box_handoff.json")
+
+
+def grips(sb: Storyboard) -> dict[tuple[str, str], int]:
+    return {(c.agent, c.hand): c.anchor for c in sb.contacts}
+
+
+def test_a_storyboard_whose_hands_hold_grips_of_their_own_is_read_as_drawn():
+    sb = hand_off()
+    assert grips(with_grips_fitted(sb)) == grips(sb) == {("A", "left"): 2, ("A", "right"): 0,
+                                                       ("B", "left"): 1, ("B", "right"): 3}
+
+
+def test_a_taker_drawn_on_the_givers_grips_takes_the_free_ones_at_the_same_ends_left_hand_left():
+    sb = hand_off()
+    for c in sb.contacts:                    # both people clicked the box's two ends
+        if c.agent == "B":
+            c.anchor = 2 if c.hand == "left" else 0
+    b_left = next(c for c in sb.contacts if (c.agent, c.hand) == ("B", "left"))
+    assert held_by_others(b_left, sb.contacts) == {0, 2}
+    assert free_anchors(sb, b_left)[0] == 3             # grip 2's partner on the same (+x) end
+    apart = with_grips_fitted(sb)                           # and uncrossed: the bundled example's
+    assert grips(apart) == grips(hand_off())
+    assert grips(sb)[("B", "left")] == 2                 # the storyboard itself is left as drawn
+    assert grips(Request.build(sb).storyboard) == grips(apart)
+
+
+def test_one_grip_held_at_different_times_is_not_shared():
+    sb = hand_off()
+    for c in sb.contacts:
+        if c.agent == "B":
+            c.start, c.anchor = 50, (2 if c.hand == "left" else 0)   # B takes the box after A let go
+    assert grips(with_grips_fitted(sb)) == grips(sb)
+
+
+def test_a_hand_with_no_free_grip_keeps_its_own():
+    sb = hand_off()
+    sb.objects[0].spec.anchors = sb.objects[0].spec.anchors[:2]      # a box with two grips
+    for c in sb.contacts:
+        c.anchor = 0 if c.hand == "left" else 1
+    assert grips(with_grips_fitted(sb)) == grips(sb)
+
+
+def test_a_person_holding_the_near_side_with_crossed_hands_swaps_them():
+    """The giver's left hand on the near side's grip at their right (the app's artist clicked the
+    box's left end for the left hand): no turn of the box fits both hands."""
+    sb = hand_off()
+    for c in sb.contacts:
+        if c.agent == "A":
+            c.anchor = 0 if c.hand == "left" else 2
+    assert grips(with_grips_fitted(sb))[("A", "left")] == 2 and grips(with_grips_fitted(sb))[("A", "right")] == 0
+
+
+def test_both_hands_on_one_end_hold_it_left_hand_left():
+    sb = hand_off()
+    for c in sb.contacts:
+        if c.agent == "A":
+            c.anchor = 1 if c.hand == "left" else 0       # A at the -x end, facing +x: left is -z
+    assert (grips(with_grips_fitted(sb))[("A", "left")], grips(with_grips_fitted(sb))[("A", "right")]) == (0, 1)
