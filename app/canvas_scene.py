@@ -9,6 +9,7 @@ from PySide6.QtCore import QPointF
 from PySide6.QtGui import QPainterPath, QPolygonF
 
 from engine.geometry.polylines import point_polyline_distance
+from engine.grips import anchors_in_sketch
 from engine.skeleton import JOINT_INDEX
 from engine.storyboard import Contact
 
@@ -52,13 +53,9 @@ class CanvasScene:
         return i, outline, bool(exact)
 
     def _anchors_2d(self, object_id: str, outline: np.ndarray) -> np.ndarray:
-        """The object's K grasp anchors in the sketch (K, 2): on its -x end at the outline's left side,
-        +x at the right, each moved by its depth (local z) as the camera sees it (near / far grips)."""
-        lo, hi = outline.min(axis=0), outline.max(axis=0)
-        anchors = self._doc.storyboard.objects[self._doc.storyboard.object_index(object_id)].spec.anchors
-        sides = np.where(anchors[:, :1] < 0, [[lo[0], (lo[1] + hi[1]) / 2]], [[hi[0], (lo[1] + hi[1]) / 2]])
-        depth = np.stack([np.zeros(len(anchors)), np.zeros(len(anchors)), anchors[:, 2]], -1)
-        return sides + depth @ self._doc.storyboard.camera.basis()[:2].T
+        """The object's K grasp anchors in the sketch (K, 2) (engine.grips.anchors_in_sketch)."""
+        sb = self._doc.storyboard
+        return anchors_in_sketch(sb.objects[sb.object_index(object_id)].spec.anchors, outline, sb.camera)
 
     def _hand_position(self, agent: str, hand: str) -> np.ndarray | None:
         j = JOINT_INDEX[HAND_NAMES[hand]]

@@ -5,7 +5,9 @@ own frames. An artist's differ, and two kinds are made here, each from a seed:
 
 `hand_drawn`: figures stretched or squashed by up to 12% (per key, about the pelvis), every
 placed joint 2-3 cm off, spine and collar joints often left unplaced, interior keys and contact
-spans a few frames off, strokes short and wobbly (8-20 points), a box drawn as its four corners.
+spans a few frames off, strokes short and wobbly (8-20 points), a box drawn as its four corners,
+each hand joined to the grip the app's contact tool shows nearest it, then mended as the app
+mends them (engine.grips: which of an object's grips a hand holds is no 2D drawing's to say).
 `posed_with_tools`: what the app's keypose tool gives an artist who drags only the end effectors:
 the canvas's standing template (engine.poses) placed at the pelvis by a click, then ankles, feet,
 wrists and head dragged to where they belong with the canvas's rig (engine.rig: the limbs follow by
@@ -22,9 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry.polylines import resample_polyline
+from .grips import anchors_in_sketch, with_grips_fitted
 from .poses import standing_pose_2d
 from .rig import drag_pose
-from .skeleton import JOINT_INDEX
+from .skeleton import HANDS, JOINT_INDEX
+from .storyboard import HANDS as HAND_NAMES
 from .storyboard import Keypose, Storyboard, StoryboardError
 
 UNPLACED_CANDIDATES = ("spine1", "spine2", "spine3", "l_collar", "r_collar")
@@ -47,7 +51,7 @@ def hand_drawn(clean: Storyboard, seed: int, config: ArtistConfig = ArtistConfig
     rng = np.random.default_rng(seed)
     sb = _with_rough_paths_and_spans(clean, rng, config)
     sb.keyposes = [_drawn_figure(k, rng, config) for k in _shifted_keys(clean, rng, config)]
-    return _valid(sb, clean)
+    return _valid(with_grips_fitted(_grips_clicked(sb)), clean)
 
 
 def posed_with_tools(clean: Storyboard, seed: int, config: ArtistConfig = ArtistConfig()) -> Storyboard:
@@ -55,7 +59,7 @@ def posed_with_tools(clean: Storyboard, seed: int, config: ArtistConfig = Artist
     sb = _with_rough_paths_and_spans(clean, rng, config)
     template = standing_pose_2d(clean.camera)
     sb.keyposes = [_posed_figure(k, template, rng, config) for k in _shifted_keys(clean, rng, config)]
-    return _valid(sb, clean)
+    return _valid(with_grips_fitted(_grips_clicked(sb)), clean)
 
 
 def redrawn(clean: Storyboard, seed: int, posed: bool = False) -> Storyboard:
@@ -75,6 +79,24 @@ def _valid(sb: Storyboard, clean: Storyboard) -> Storyboard:
     except StoryboardError:
         sb.contacts = copy.deepcopy(clean.contacts)
         sb.validate()
+    return sb
+
+
+def _grips_clicked(sb: Storyboard) -> Storyboard:
+    """Each object contact's grip the one the app shows nearest its hand (engine.grips.
+    anchors_in_sketch) at the hand's key nearest the span's start, on the object's outline
+    nearest that frame."""
+    for c in sb.contacts:
+        wrist = HANDS[HAND_NAMES.index(c.hand)]
+        keys = [k for k in sb.keyposes if k.agent == c.agent and k.mask[wrist]]
+        outlines = [o for o in sb.object_keys if o.object == c.object]
+        if c.object is None or not keys or not outlines:
+            continue
+        key = min(keys, key=lambda k: (abs(k.frame - min(max(k.frame, c.start), c.end)), abs(k.frame - c.start)))
+        outline = min(outlines, key=lambda o: abs(o.frame - key.frame)).outline
+        spec = sb.objects[sb.object_index(c.object)].spec
+        shown = anchors_in_sketch(spec.anchors, outline, sb.camera)
+        c.anchor = int(np.argmin(np.linalg.norm(shown - key.points[wrist], axis=-1)))
     return sb
 
 

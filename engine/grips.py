@@ -12,12 +12,18 @@ app mends them as contacts are drawn.
 from __future__ import annotations
 
 import copy
+import itertools
 
 import numpy as np
 
+from .camera import StoryboardCamera
+from .skeleton import HANDS
+from .storyboard import HANDS as HAND_NAMES
 from .storyboard import Contact, Storyboard
+from .synth.reach import yaw_matrix
 
 UP = np.array([0.0, 1.0, 0.0])
+TURNS = 72          # turns of an object about the vertical tried when fitting its grips to drawn hands
 
 
 def _overlap(a: Contact, b: Contact) -> bool:
@@ -40,6 +46,16 @@ def free_anchors(storyboard: Storyboard, contact: Contact) -> list[int]:
     return [int(k) for k in order if k not in taken]
 
 
+def anchors_in_sketch(anchors: np.ndarray, outline: np.ndarray, camera: StoryboardCamera) -> np.ndarray:
+    """Where an object's K anchors (K, 3) show on its sketched outline (P, 2), as the app's contact
+    tool offers them: on the -x end at the outline's left side, +x at its right, each moved by its
+    depth (local z) as the camera sees it (near and far grips) -> (K, 2)."""
+    lo, hi = outline.min(axis=0), outline.max(axis=0)
+    sides = np.where(anchors[:, :1] < 0, [[lo[0], (lo[1] + hi[1]) / 2]], [[hi[0], (lo[1] + hi[1]) / 2]])
+    depth = np.stack([np.zeros(len(anchors)), np.zeros(len(anchors)), anchors[:, 2]], -1)
+    return sides + depth @ camera.basis()[:2].T
+
+
 def _anchors(storyboard: Storyboard, contact: Contact) -> np.ndarray:
     """(K, 3) local anchors of the contact's object."""
     return storyboard.objects[storyboard.object_index(contact.object)].spec.anchors
@@ -54,13 +70,87 @@ def _uncrossed(storyboard: Storyboard, left: Contact, right: Contact) -> bool:
     return bool(np.cross(UP, -outward) @ (a - b) >= 0.0)
 
 
+NEAR_FRAMES = 8     # a person's keypose this close to a shared hold draws their hands in it
+
+
+def _held_together(storyboard: Storyboard, holds: list[Contact]) -> list[tuple[list[int], np.ndarray]]:
+    """Holds of one object (indices into `holds`) that overlap in time, two or more people's, with
+    each hand as its person's keypose nearest the frames they share draws it (hands, 2); groups
+    some hand of which no keypose within NEAR_FRAMES draws are left out."""
+    out = []
+    for obj in dict.fromkeys(c.object for c in holds):
+        mine = [i for i, c in enumerate(holds) if c.object == obj]
+        while mine:
+            group, grown = [mine.pop(0)], True
+            while grown:                          # every hold overlapping one in the group joins it
+                grown = [i for i in mine if any(_overlap(holds[i], holds[g]) for g in group)]
+                group += grown
+                mine = [i for i in mine if i not in grown]
+            if len({holds[i].agent for i in group}) < 2:
+                continue
+            shared = (max(holds[i].start for i in group), min(holds[i].end for i in group))
+            drawn = [_drawn_near(storyboard, holds[i], shared) for i in group]
+            if all(d is not None for d in drawn):
+                out.append((group, np.stack(drawn)))
+    return out
+
+
+def _drawn_near(storyboard: Storyboard, contact: Contact, frames: tuple[int, int]) -> np.ndarray | None:
+    """The contact's hand (2,) as its person's keypose nearest the frames [first, last] draws it,
+    or None where none within NEAR_FRAMES does."""
+    wrist = HANDS[HAND_NAMES.index(contact.hand)]
+    first, last = min(frames), max(frames)
+    keys = [k for k in storyboard.keyposes if k.agent == contact.agent and k.mask[wrist]]
+    away = [max(first - k.frame, k.frame - last, 0) for k in keys]
+    if not keys or min(away) > NEAR_FRAMES:
+        return None
+    return keys[int(np.argmin(away))].points[wrist]
+
+
+def _misfit(storyboard: Storyboard, holds: list[Contact], drawn: np.ndarray, anchors: np.ndarray) -> np.ndarray:
+    """How far (m^2, summed) the best turn of the object about the vertical, moved anywhere, puts
+    its grips from the drawn hands (hands, 2), for each row of grip choices `anchors` (A, hands)
+    -> (A,)."""
+    local = _anchors(storyboard, holds[0])[anchors]                                 # (A, hands, 3)
+    turns = np.linspace(0.0, 2 * np.pi, TURNS, endpoint=False)
+    shown = np.einsum("tjk,ahk->athj", yaw_matrix(turns), local)                     # (A, T, hands, 3)
+    shown = shown @ storyboard.camera.basis()[:2].T                                  # (A, T, hands, 2)
+    gap = drawn - shown
+    gap = gap - gap.mean(axis=2, keepdims=True)                                      # moved anywhere
+    return (gap ** 2).sum(axis=(2, 3)).min(axis=1)
+
+
+def _fit_to_drawing(storyboard: Storyboard, holds: list[Contact], drawn: np.ndarray) -> None:
+    """Hands that hold one object together and share or cross grips get the grips (one each, no
+    person's hands crossed) that fit their drawn places (hands, 2) best; grips that are possible
+    stay (the drawing is a few frames and centimetres off, the artist's choice is not)."""
+    count = len(_anchors(storyboard, holds[0]))
+    options = [p for p in itertools.permutations(range(count), len(holds)) if _uncrossed_choice(storyboard, holds, p)]
+    if not options or tuple(c.anchor for c in holds) in options:
+        return
+    best = options[int(np.argmin(_misfit(storyboard, holds, drawn, np.array(options))))]
+    for c, anchor in zip(holds, best):
+        c.anchor = anchor
+
+
+def _uncrossed_choice(storyboard: Storyboard, holds: list[Contact], choice: tuple[int, ...]) -> bool:
+    trial = [copy.copy(c) for c in holds]
+    for c, anchor in zip(trial, choice):
+        c.anchor = anchor
+    return all(_uncrossed(storyboard, a, b) for a in trial for b in trial
+               if a.agent == b.agent and a.hand == "left" and b.hand == "right")
+
+
 def with_grips_fitted(storyboard: Storyboard) -> Storyboard:
-    """A copy of the storyboard in which every object contact whose grip an earlier contact's hand
-    holds over part of its span has the nearest grip no other hand holds then (or keeps its own
-    where none is free), and a person's two hands holding one object at once swap grips where the
-    left one holds the grip on their right."""
+    """A copy of the storyboard with its object holds' grips mended: people holding one object at
+    once, sharing or crossing grips, get the grips that fit their drawn hands best (_fit_to_drawing);
+    then every hold whose grip an earlier hold's hand holds over part of its span has the nearest
+    grip no other hand holds then (or keeps its own where none is free), and a person's two hands
+    holding one object at once swap grips where the left one holds the grip on their right."""
     out = copy.deepcopy(storyboard)
     holds = [c for c in out.contacts if c.object is not None]
+    for together, drawn in _held_together(out, holds):
+        _fit_to_drawing(out, [holds[i] for i in together], drawn)
     for i, c in enumerate(holds):
         if c.anchor in held_by_others(c, holds[:i]):
             c.anchor = (free_anchors(out, c) or [c.anchor])[0]

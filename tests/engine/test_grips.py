@@ -1,7 +1,9 @@
 """Grips two hands cannot share (engine/grips.py)."""
 from engine.grips import free_anchors, held_by_others, with_grips_fitted
 from engine.request import Request
+from engine.sketchify import sketchify
 from engine.storyboard import Storyboard
+from engine.synth import synthesize
 
 
 def hand_off() -> Storyboard:
@@ -64,4 +66,28 @@ def test_both_hands_on_one_end_hold_it_left_hand_left():
     for c in sb.contacts:
         if c.agent == "A":
             c.anchor = 1 if c.hand == "left" else 0       # A at the -x end, facing +x: left is -z
+        else:
+            c.start = 50                                  # A holds alone: no drawing to fit
     assert (grips(with_grips_fitted(sb))[("A", "left")], grips(with_grips_fitted(sb))[("A", "right")]) == (0, 1)
+
+
+def test_people_drawn_at_the_two_ends_of_a_box_they_lift_hold_its_ends():
+    """Both lifters joined to the same two grips, one on each end (the app's artist clicked the box's
+    ends for both): of the grips no two hands share and no person crosses, those that fit the drawn
+    hands are the ends' (each person's hands on one end), not the long sides' 20 cm apart for
+    people a metre apart."""
+    sb = sketchify(synthesize("lift_adjust", 3, fps=20), 4, 0.0, 3)
+    own = sorted(sorted(c.anchor for c in sb.contacts if c.agent == agent) for agent in "AB")
+    assert own == [[0, 1], [2, 3]]                                       # the synthesizer's
+    for c in sb.contacts:
+        c.anchor = 2 if c.hand == "left" else 0
+    fitted = with_grips_fitted(sb)
+    held = sorted(sorted(c.anchor for c in fitted.contacts if c.agent == agent) for agent in "AB")
+    assert held == [[0, 1], [2, 3]]
+
+
+def test_grips_that_are_possible_stay_whatever_the_drawing():
+    sb = hand_off()
+    for c in sb.contacts:                    # each person on one end: possible, if not as drawn
+        c.anchor = {("A", "left"): 0, ("A", "right"): 1, ("B", "left"): 3, ("B", "right"): 2}[(c.agent, c.hand)]
+    assert grips(with_grips_fitted(sb)) == grips(sb)
