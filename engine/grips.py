@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+from dataclasses import replace
 
 import numpy as np
 
@@ -33,8 +34,8 @@ def _overlap(a: Contact, b: Contact) -> bool:
 def held_by_others(contact: Contact, contacts: list[Contact]) -> set[int]:
     """Anchors of `contact`'s object that another hand among `contacts` holds at some frame of
     its span."""
-    return {c.anchor for c in contacts
-            if c.object == contact.object and (c.agent, c.hand) != (contact.agent, contact.hand) and _overlap(c, contact)}
+    return {c.anchor for c in contacts if c.object == contact.object and _overlap(c, contact)
+            and (c.agent, c.hand) != (contact.agent, contact.hand)}
 
 
 def free_anchors(storyboard: Storyboard, contact: Contact) -> list[int]:
@@ -142,12 +143,12 @@ def _uncrossed_choice(storyboard: Storyboard, holds: list[Contact], choice: tupl
 
 
 def with_grips_fitted(storyboard: Storyboard) -> Storyboard:
-    """A copy of the storyboard with its object holds' grips mended: people holding one object at
-    once, sharing or crossing grips, get the grips that fit their drawn hands best (_fit_to_drawing);
-    then every hold whose grip an earlier hold's hand holds over part of its span has the nearest
+    """The storyboard with its object holds' grips mended (its contacts copied): people holding
+    one object at once, sharing or crossing grips, get the grips that fit their drawn hands best
+    (_fit_to_drawing); then every hold whose grip an earlier hold's hand holds over part of its span has the nearest
     grip no other hand holds then (or keeps its own where none is free), and a person's two hands
     holding one object at once swap grips where the left one holds the grip on their right."""
-    out = copy.deepcopy(storyboard)
+    out = replace(storyboard, contacts=copy.deepcopy(storyboard.contacts))   # the rest is only read
     holds = [c for c in out.contacts if c.object is not None]
     for together, drawn in _held_together(out, holds):
         _fit_to_drawing(out, [holds[i] for i in together], drawn)
