@@ -8,8 +8,8 @@ import numpy as np
 from engine.facing import depth_of, facing, lift
 from engine.poses import REACHES_FOR, library_pose, library_pose_2d, reach_of, standing_pose_2d
 from engine.skeleton import FEET, JOINT_INDEX, NUM_JOINTS
-from engine.synth.reach import heading_of
 from engine.storyboard import Keypose, Storyboard
+from engine.synth.reach import heading_of
 
 
 def previous_keypose(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
@@ -31,21 +31,24 @@ def new_keypose(sb: Storyboard, agent: str, frame: int) -> tuple[np.ndarray, np.
 
 def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(points (22, 2), mask (22,), depth (22,)) of library pose `name` for the agent at `frame`,
-    standing where the agent stands (see `placed_pose`). A pose that reaches for a person or an
-    object (engine.poses.REACHES_FOR) reaches towards the nearest one drawn then, to its left or
-    right on the sketch (the library's poses all face +Z: a giver on the left held the box out
-    away from the taker)."""
+    standing where the agent stands (see `placed_pose`), facing the way the agent's keypose before
+    it faces (the library's poses all face +Z: a giver on the left held the box out away from the
+    taker, a carrier turned back on the box at every key). A pose that reaches for a person or an
+    object (engine.poses.REACHES_FOR) reaches towards the nearest one drawn then instead, to its
+    left or right on the sketch."""
     mask = np.ones(NUM_JOINTS, bool)
     points, _ = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera), mask)
     yaw = _reach_yaw(sb, agent, frame, name, points[0])
+    if yaw is None:
+        yaw = _previous_facing(sb, agent, frame)
     points, mask = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera, yaw), mask)
     return points, mask, depth_of(library_pose(name, yaw), sb.camera)
 
 
-def _reach_yaw(sb: Storyboard, agent: str, frame: int, name: str, pelvis: np.ndarray) -> float:
+def _reach_yaw(sb: Storyboard, agent: str, frame: int, name: str, pelvis: np.ndarray) -> float | None:
     """The yaw that turns library pose `name`'s reach to point along the sketch towards the
     nearest of what it reaches for, seen from `pelvis` (2,): another person (their keypose at
-    `frame`, or the one before) or an object key at `frame`; 0 where there is none."""
+    `frame`, or the one before) or an object key at `frame`; None where there is none."""
     if REACHES_FOR.get(name) == "person":
         keys = [next((k for k in sb.keyposes if k.agent == a.id and k.frame == frame), None)
                 or previous_keypose(sb, a.id, frame) for a in sb.agents if a.id != agent]
@@ -55,10 +58,19 @@ def _reach_yaw(sb: Storyboard, agent: str, frame: int, name: str, pelvis: np.nda
     else:
         places = []
     if not places:
-        return 0.0
+        return None
     nearest = min(places, key=lambda p: float(np.linalg.norm(p - pelvis)))
     towards = np.sign(nearest[0] - pelvis[0]) or 1.0
     return float(heading_of(towards * sb.camera.basis()[0]) - heading_of(reach_of(name)))
+
+
+def _previous_facing(sb: Storyboard, agent: str, frame: int) -> float:
+    """The yaw of the agent's keypose before `frame` where its depths say it (a stamped or turned
+    pose), else 0."""
+    key = previous_keypose(sb, agent, frame)
+    if key is None or key.depth is None or not key.mask[TURNABLE].all():
+        return 0.0
+    return facing(lift(key.points, sb.camera, key.depth))
 
 
 def placed_pose(sb: Storyboard, agent: str, frame: int, points: np.ndarray, mask: np.ndarray

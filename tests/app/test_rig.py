@@ -238,8 +238,8 @@ def test_a_library_pose_is_stamped_where_the_figure_stands(qtbot, make_window):
 
 def test_a_stamped_hand_over_reaches_towards_the_other_person(qtbot, make_window):
     """The library's poses face +Z, their hands out to the left on the sketch: a giver on the left
-    held the box out away from the taker. A pose that reaches for someone reaches their way, a
-    pose that reaches for an object the object's, and a standing pose stays as it is."""
+    held the box out away from the taker. A pose that reaches for someone reaches their way; a
+    pose with nothing drawn to reach for faces the way the person's key before it does."""
     from engine.facing import depth_of
     from engine.poses import library_pose
     window = make_window()
@@ -261,6 +261,11 @@ def test_a_stamped_hand_over_reaches_towards_the_other_person(qtbot, make_window
     assert np.allclose(key.depth, depth_of(library_pose("stand"), doc.storyboard.camera))
     window.stamp_pose("lift")                                # no object drawn then: as the library has it
     assert np.allclose(cmd.find_keypose(doc.storyboard, "B", FRAME).depth, depth_of(library_pose("lift"), doc.storyboard.camera))
+    doc.select(agent="A")                                    # a later key faces the way the one before does
+    doc.set_frame(FRAME + 30)
+    window.stamp_pose("carry")
+    key = cmd.find_keypose(doc.storyboard, "A", FRAME + 30)
+    assert np.all(key.points[hands, 0] - key.points[J["pelvis"], 0] > 0.2)   # still towards B
 
 
 def test_copy_a_pose_and_paste_it_on_the_other_agent_where_it_stands(qtbot, make_window):
