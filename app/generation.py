@@ -79,7 +79,18 @@ def start_generation(storyboard: Storyboard, settings: GenerationSettings) -> St
                             energy=settings.use_energy, ctmc=settings.use_ctmc, steady=settings.steady,
                             preview=settings.preview, threads=settings.threads, reserve_cores=settings.reserve_cores,
                             text_cfg=None if settings.text_cfg == settings.cfg else settings.text_cfg)
-    return (yield from sample(_bundle(), Request.build(storyboard, config)))
+    return (yield from sample(_bundle(), Request.build(drawn_cast(storyboard), config)))
+
+
+def drawn_cast(storyboard: Storyboard) -> Storyboard:
+    """The storyboard without its last agents for whom nothing is drawn (no keypose, stroke or
+    contact), unless nothing is drawn for anyone: a person the artist left alone is not in the
+    scene (animated anyway, the document's second person wandered into a solo lift). The agents
+    before a drawn one stay: a clip's people are the storyboard's first agents."""
+    drawn = {k.agent for k in storyboard.keyposes} | {t.agent for t in storyboard.trajectories} \
+        | {c.agent for c in storyboard.contacts} | {c.other_agent for c in storyboard.contacts}
+    last = max((i for i, a in enumerate(storyboard.agents) if a.id in drawn), default=len(storyboard.agents) - 1)
+    return replace(storyboard, agents=storyboard.agents[:last + 1])
 
 
 def warm_up(storyboard_path: Path, steps: int = 2) -> None:
