@@ -25,13 +25,14 @@ def small_bundle():
 
 
 def paced_generation(storyboard, settings):
-    """The real stream with a short pause after each step: the worker's mailbox rightly skips a
-    step the GUI has not taken yet, and this test wants to see every one."""
+    """The real stream with a pause after each step: the worker's mailbox rightly skips a step the
+    GUI has not taken yet, and this test wants to see every one (0.2 s was too short for the first
+    step's first paint of the view on a busy host, or once torch was warm from earlier tests)."""
     stream = start_generation(storyboard, settings)
     try:
         while True:
             yield next(stream)
-            time.sleep(0.2)
+            time.sleep(0.6)
     except StopIteration as stop:
         return stop.value
     finally:
