@@ -53,7 +53,7 @@ class PoseActions:
 
     def stamp_pose(self, name: str) -> None:
         doc = self.doc
-        points, mask, depth = stamped_pose(doc.storyboard, doc.selection.agent, doc.frame, name)   # the library knows its 3D
+        points, mask, depth = stamped_pose(doc.storyboard, doc.selection.agent, doc.frame, name)
         doc.undo_stack.push(cmd.SetKeypose(doc, doc.selection.agent, doc.frame, points, mask, f"Stamp pose: {name}", depth))
 
     def delete_keypose(self) -> None:

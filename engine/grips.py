@@ -25,9 +25,11 @@ from .synth.reach import yaw_matrix
 
 UP = np.array([0.0, 1.0, 0.0])
 TURNS = 72          # turns of an object about the vertical tried when fitting its grips to drawn hands
+NEAR_FRAMES = 8     # a person's keypose this close to a shared hold draws their hands in it
 
 
 def _overlap(a: Contact, b: Contact) -> bool:
+    """Whether two contacts' spans share a frame."""
     return a.start <= b.end and b.start <= a.end
 
 
@@ -71,9 +73,6 @@ def _uncrossed(storyboard: Storyboard, left: Contact, right: Contact) -> bool:
     return bool(np.cross(UP, -outward) @ (a - b) >= 0.0)
 
 
-NEAR_FRAMES = 8     # a person's keypose this close to a shared hold draws their hands in it
-
-
 def _held_together(storyboard: Storyboard, holds: list[Contact]) -> list[tuple[list[int], np.ndarray]]:
     """Holds of one object (indices into `holds`) that overlap in time, two or more people's, with
     each hand as its person's keypose nearest the frames they share draws it (hands, 2); groups
@@ -108,7 +107,8 @@ def _drawn_near(storyboard: Storyboard, contact: Contact, frames: tuple[int, int
     return keys[int(np.argmin(away))].points[wrist]
 
 
-def _misfit(storyboard: Storyboard, holds: list[Contact], drawn: np.ndarray, anchors: np.ndarray) -> np.ndarray:
+def _misfit(storyboard: Storyboard, holds: list[Contact], drawn: np.ndarray,
+            anchors: np.ndarray) -> np.ndarray:
     """How far (m^2, summed) the best turn of the object about the vertical, moved anywhere, puts
     its grips from the drawn hands (hands, 2), for each row of grip choices `anchors` (A, hands)
     -> (A,)."""
@@ -126,7 +126,8 @@ def _fit_to_drawing(storyboard: Storyboard, holds: list[Contact], drawn: np.ndar
     person's hands crossed) that fit their drawn places (hands, 2) best; grips that are possible
     stay (the drawing is a few frames and centimetres off, the artist's choice is not)."""
     count = len(_anchors(storyboard, holds[0]))
-    options = [p for p in itertools.permutations(range(count), len(holds)) if _uncrossed_choice(storyboard, holds, p)]
+    options = [p for p in itertools.permutations(range(count), len(holds))
+               if _uncrossed_choice(storyboard, holds, p)]
     if not options or tuple(c.anchor for c in holds) in options:
         return
     best = options[int(np.argmin(_misfit(storyboard, holds, drawn, np.array(options))))]
@@ -135,6 +136,7 @@ def _fit_to_drawing(storyboard: Storyboard, holds: list[Contact], drawn: np.ndar
 
 
 def _uncrossed_choice(storyboard: Storyboard, holds: list[Contact], choice: tuple[int, ...]) -> bool:
+    """Whether giving `holds` the grips `choice` (one each) crosses no person's hands."""
     trial = [copy.copy(c) for c in holds]
     for c, anchor in zip(trial, choice):
         c.anchor = anchor
@@ -145,9 +147,10 @@ def _uncrossed_choice(storyboard: Storyboard, holds: list[Contact], choice: tupl
 def with_grips_fitted(storyboard: Storyboard) -> Storyboard:
     """The storyboard with its object holds' grips mended (its contacts copied): people holding
     one object at once, sharing or crossing grips, get the grips that fit their drawn hands best
-    (_fit_to_drawing); then every hold whose grip an earlier hold's hand holds over part of its span has the nearest
-    grip no other hand holds then (or keeps its own where none is free), and a person's two hands
-    holding one object at once swap grips where the left one holds the grip on their right."""
+    (_fit_to_drawing); then every hold whose grip an earlier hold's hand holds over part of its span
+    has the nearest grip no other hand holds then (or keeps its own where none is free), and a
+    person's two hands holding one object at once swap grips where the left one holds the grip on
+    their right."""
     out = replace(storyboard, contacts=copy.deepcopy(storyboard.contacts))   # the rest is only read
     holds = [c for c in out.contacts if c.object is not None]
     for together, drawn in _held_together(out, holds):
@@ -156,7 +159,8 @@ def with_grips_fitted(storyboard: Storyboard) -> Storyboard:
         if c.anchor in held_by_others(c, holds[:i]):
             c.anchor = (free_anchors(out, c) or [c.anchor])[0]
     for left in (c for c in holds if c.hand == "left"):
-        for right in (c for c in holds if c.hand == "right" and c.agent == left.agent and c.object == left.object):
+        for right in (c for c in holds
+                      if c.hand == "right" and c.agent == left.agent and c.object == left.object):
             if _overlap(left, right) and left.anchor != right.anchor and not _uncrossed(out, left, right):
                 left.anchor, right.anchor = right.anchor, left.anchor
     return out

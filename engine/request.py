@@ -3,11 +3,11 @@
     request = Request.build(storyboard, config)   # the command line, the app, the benchmark, the demo
     view = request.for_model(stride)               # the sampler: the model's rate, padded, its controls
 
-The storyboard stays as drawn (its frames, its frame rate), but for hands drawn on one grip at once
-(engine.grips: one hand to a grip, the left hand on its left): finishing and the output use it. The
-networks animate at MODEL_FPS in fixed slots (engine.models.slots); `for_model` retimes the
-storyboard to that rate, pads it to the decoder's frame stride and builds its controls once, for
-the network's conditioning and the guidance energies alike.
+The storyboard stays as drawn (its frames, its frame rate; only shared or crossed grips are
+mended: engine.grips): finishing and the output use it. The networks animate at MODEL_FPS in fixed
+slots (engine.models.slots); `for_model` retimes the storyboard to that rate, pads it to the
+decoder's frame stride and builds its controls once, for the network's conditioning and the
+guidance energies alike.
 """
 from __future__ import annotations
 

@@ -201,9 +201,10 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
     quite the skeleton's, and a refit from the hips put feet 5 cm under or over the ground), and the
     arms for the wrists that the keys place (a figure drawn out of proportion, as an artist's
     stretched by up to 12%, has bones the skeleton cannot match: the refit left its wrists 4-5 cm
-    off their drawn points). Local rotation offsets would be the textbook choice, but a solved keypose often tilts the IK's
-    pelvis frame by 60 degrees or more and the hips back by as much; half of each, between keys,
-    folds the legs up off the ground (a carrier crawled through the let_go example)."""
+    off their drawn points). Local rotation offsets would be the textbook choice, but a solved
+    keypose often tilts the IK's pelvis frame by 60 degrees or more and the hips back by as much;
+    half of each, between keys, folds the legs up off the ground (a carrier crawled through the
+    let_go example)."""
     out = joints.copy()
     n = len(joints)
     warped = {}                                      # person -> (root (N, 3), target (N, 22, 3), keyposes)
