@@ -18,6 +18,11 @@ def previous_keypose(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
     return max(earlier, key=lambda k: k.frame) if earlier else None
 
 
+def key_at_or_before(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
+    """The agent's keypose at `frame`, else its latest one before it."""
+    return next((k for k in sb.keyposes if k.agent == agent and k.frame == frame), None) or previous_keypose(sb, agent, frame)
+
+
 def new_keypose(sb: Storyboard, agent: str, frame: int) -> tuple[np.ndarray, np.ndarray]:
     """(points (22, 2), mask (22,)) for a keypose added at `frame`: the previous keyframe's pose,
     or a standing figure placed apart from the other agents."""
@@ -50,8 +55,7 @@ def _reach_yaw(sb: Storyboard, agent: str, frame: int, name: str, pelvis: np.nda
     nearest of what it reaches for, seen from `pelvis` (2,): another person (their keypose at
     `frame`, or the one before) or an object key at `frame`; None where there is none."""
     if REACHES_FOR.get(name) == "person":
-        keys = [next((k for k in sb.keyposes if k.agent == a.id and k.frame == frame), None)
-                or previous_keypose(sb, a.id, frame) for a in sb.agents if a.id != agent]
+        keys = [key_at_or_before(sb, a.id, frame) for a in sb.agents if a.id != agent]
         places = [k.points[0] for k in keys if k is not None and k.mask[0]]
     elif REACHES_FOR.get(name) == "object":
         places = [key.outline.mean(0) for key in sb.object_keys if key.frame == frame]
@@ -78,7 +82,7 @@ def placed_pose(sb: Storyboard, agent: str, frame: int, points: np.ndarray, mask
     """A pose (points (22, 2), mask (22,)) moved to where the agent stands at `frame`: its feet on
     the feet of the agent's keypose there (or the one before), else its pelvis on that pelvis,
     else where a new keypose would go. A pose with neither feet nor pelvis is left where it is."""
-    here = next((k for k in sb.keyposes if k.agent == agent and k.frame == frame), None) or previous_keypose(sb, agent, frame)
+    here = key_at_or_before(sb, agent, frame)
     feet = list(FEET)
     if here is not None and here.mask[feet].all() and mask[feet].all():
         shift = here.points[feet].mean(0) - points[feet].mean(0)

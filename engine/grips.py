@@ -125,10 +125,13 @@ def _fit_to_drawing(storyboard: Storyboard, holds: list[Contact], drawn: np.ndar
     """Hands that hold one object together and share or cross grips get the grips (one each, no
     person's hands crossed) that fit their drawn places (hands, 2) best; grips that are possible
     stay (the drawing is a few frames and centimetres off, the artist's choice is not)."""
+    given = tuple(c.anchor for c in holds)
+    if len(set(given)) == len(given) and _uncrossed_choice(storyboard, holds, given):
+        return
     count = len(_anchors(storyboard, holds[0]))
     options = [p for p in itertools.permutations(range(count), len(holds))
                if _uncrossed_choice(storyboard, holds, p)]
-    if not options or tuple(c.anchor for c in holds) in options:
+    if not options:
         return
     best = options[int(np.argmin(_misfit(storyboard, holds, drawn, np.array(options))))]
     for c, anchor in zip(holds, best):
