@@ -16,7 +16,9 @@ from .fakes import FakeSampler  # noqa: E402
 
 @pytest.fixture(autouse=True)
 def join_threads(qapp):
-    """After each test, quit and join every QThread still alive, so none outlives its test."""
+    """After each test, quit and join every QThread still alive, so none outlives its test, and
+    free what the test left to the garbage collector: collected at a later, random moment (inside
+    an engine test after the GUI tests), a Qt object's teardown crashed the process."""
     yield
     for obj in gc.get_objects():
         if issubclass(type(obj), QThread) and obj is not qapp.thread():  # type(): no proxies poked
@@ -25,6 +27,7 @@ def join_threads(qapp):
                 assert obj.wait(5000), "a QThread did not finish"
             except RuntimeError:  # its C++ side is already gone
                 pass
+    gc.collect()
 
 
 class DialogRecorder:
