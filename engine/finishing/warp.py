@@ -8,9 +8,10 @@ key), so the motion keeps its own dynamics while passing through the sketch. Pel
 walked afterwards (paths.py).
 
 A 2D sketch does not give depth; the ground does. Every sketched joint slides along its camera
-ray to a depth that keeps the generated pose's depth differences along its bones while the feet
-it stands on touch the ground (a least-squares fit); a slide of the whole figure along the
-viewing direction keeps the sketch exact.
+ray to a depth that keeps the generated pose's depth differences along its bones (a stamped or
+turned keypose's own, which the app knows) while the feet it stands on touch the ground (a
+least-squares fit); a slide of the whole figure along the viewing direction keeps the sketch
+exact.
 
 Joint arrays are (N, H, 22, 3) in metres with consistent bone lengths: `offsets` (H, 22, 3) are
 each person's bones, FK(joints[:, h, 0], IK(joints[:, h], offsets[h]), offsets[h]) == joints.
@@ -124,18 +125,20 @@ def grounding_height(joints: np.ndarray, foot_height: float) -> np.ndarray:
 
 
 def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: StoryboardCamera,
-                  lengths: np.ndarray, config: WarpConfig = WarpConfig()) -> np.ndarray:
+                  lengths: np.ndarray, config: WarpConfig = WarpConfig(), known: np.ndarray | None = None) -> np.ndarray:
     """One person's pose (22, 3) moved onto a sketched keypose: uv (22, 2) where mask (22,) is
-    True; `lengths` (22,) the bone lengths to keep. Unsketched joints ride rigidly on their parent.
+    True; `lengths` (22,) the bone lengths to keep; `known` (22,) the keypose's own depths where
+    the storyboard has them (Keypose.depth). Unsketched joints ride rigidly on their parent.
 
     Each sketched joint goes to its sketch point; what is left is its depth along the camera
     ray (the viewing direction: the sketch camera is orthographic). Least squares chooses the
     depths: every sketched joint keeps the depth difference the generated pose gives it from its
-    nearest sketched ancestor, every foot the generated pose stands on (within `stance_tolerance`
-    of its lower foot) stands on the ground, and, weakly, every bone keeps its length. Bone
-    lengths alone decide little: a bone near the sketch plane 1 cm shorter than drawn is
-    sqrt(2 L dL) deep, 10 cm for a thigh, and the decoder's bones are ~3% off. With a level
-    camera the ground fixes no depth; the generated depths stay."""
+    nearest sketched ancestor (the keypose's own, where known: a stamped pose's, which the
+    generated pose, a standing one, knew nothing of), every foot the generated pose stands on
+    (within `stance_tolerance` of its lower foot) stands on the ground, and, weakly, every bone
+    keeps its length. Bone lengths alone decide little: a bone near the sketch plane 1 cm
+    shorter than drawn is sqrt(2 L dL) deep, 10 cm for a thigh, and the decoder's bones are ~3%
+    off. With a level camera the ground fixes no depth; the generated depths stay."""
     right, up, back = camera.basis()
     origin = np.asarray(camera.target) + uv[:, :1] * right + uv[:, 1:2] * up          # (22, 3) on the rays
     depth = (joints - origin) @ back                                                 # (22,) generated
@@ -159,7 +162,11 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     eye = np.eye(len(sketched))
     a = np.concatenate([config.depth_anchor * eye, eye[child] - eye[parent],
                         config.ground_weight * back[1] * eye[standing]])
-    b = np.concatenate([np.zeros(len(sketched) + len(child)),
+    kept = np.zeros(len(child))
+    if known is not None:   # the key's depth differences along the ray, instead of the generated ones
+        along = (known - (origin - origin[list(FEET)].mean(0)) @ _towards(back)) / np.hypot(back[0], back[2])
+        kept = (along - depth)[sketched][child] - (along - depth)[sketched][parent]
+    b = np.concatenate([np.zeros(len(sketched)), kept,
                         config.ground_weight * (config.foot_height - origin[sketched[standing], 1]
                                                 - depth[sketched[standing]] * back[1])])
     x = np.linalg.lstsq(a, b, rcond=None)[0]
@@ -180,6 +187,11 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     if abs(back[1]) > LEVEL:   # the lower foot exactly on the ground: a slide along the ray keeps the sketch
         out += grounding_height(out, config.foot_height) / back[1] * back
     return out
+
+
+def _towards(back: np.ndarray) -> np.ndarray:
+    """The horizontal unit direction (3,) towards the camera (Keypose.depth's axis)."""
+    return np.array([back[0], 0.0, back[2]]) / max(np.hypot(back[0], back[2]), 1e-9)
 
 
 def _sketched_ancestor(joint: int, mask: np.ndarray) -> int:
@@ -215,7 +227,7 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
             continue
         frames = [k.frame for k in keys]
         lengths = np.linalg.norm(offsets[h], axis=-1)
-        posed = np.stack([solve_keypose(joints[k.frame, h], k.points, k.mask, storyboard.camera, lengths, config)
+        posed = np.stack([solve_keypose(joints[k.frame, h], k.points, k.mask, storyboard.camera, lengths, config, k.depth)
                           for k in keys])                                        # (K, 22, 3)
         body = joints[:, h] - joints[:, h, PELVIS:PELVIS + 1]                     # (N, 22, 3) from the pelvis
         hips = joints[:, h, L_HIP] - joints[:, h, R_HIP]

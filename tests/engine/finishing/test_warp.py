@@ -99,6 +99,25 @@ def test_solve_keypose_places_a_pose_drawn_at_the_wrong_depth_by_its_standing_fe
         assert np.linalg.norm(posed - truth, axis=-1).max() < 0.03
 
 
+def test_a_keypose_whose_depths_are_known_is_solved_at_them(scene):
+    """A stamped or turned pose carries its joints' depths (Keypose.depth, the app's): the
+    generated pose, a standing one in another place, says nothing of a crouch leaning towards a
+    box, and solved by its depths the pose missed it by decimetres."""
+    from engine.facing import depth_of
+    from engine.poses import library_pose
+    from engine.skeleton import rest_pose
+    _, sb = scene
+    truth = library_pose("crouch-reach", 0.7, np.array([[0.3, 0.15, 0.3], [0.1, 0.15, 0.4]]), reach=0.9) + (0.3, 0.0, -0.4)
+    generated = rest_pose() + (0.5, 0.0, 0.2)
+    uv, mask = sb.camera.project(truth), np.ones(len(truth), bool)
+    lengths = bone_lengths(truth)
+    guessed = solve_keypose(generated, uv, mask, sb.camera, lengths)
+    known = solve_keypose(generated, uv, mask, sb.camera, lengths, known=depth_of(truth, sb.camera))
+    assert np.linalg.norm(guessed - truth, axis=-1).max() > 0.2
+    assert np.linalg.norm(known - truth, axis=-1).max() < 0.03
+    np.testing.assert_allclose(sb.camera.project(known), uv, atol=1e-9)
+
+
 def test_solve_keypose_slides_the_arms_with_the_body_when_the_spine_and_collars_are_unplaced(scene):
     """Artists often leave the spine and collars out: the shoulders then still ride on the
     pelvis as the ground places the figure (linked only to their own unplaced parents, the arms
