@@ -27,8 +27,8 @@ from ..skeleton import ELBOWS, HANDS, JOINT_NAMES, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from ..synth.props import pose_array
-from ..synth.reach import heading_of, yaw_matrix
-from ..synth.trajectory import blend_yaw, smoothstep
+from ..synth.reach import heading_of, wrap_angle, yaw_matrix
+from ..synth.trajectory import smoothstep
 from .blend import ease_frames, ease_jumps, eased_push
 from .contacts import ContactConfig, anchor_table, arm_lengths, forward_of, object_anchors, span_weight
 
@@ -211,7 +211,7 @@ def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | No
     cam = storyboard.camera
     places = [cam.unproject_to_height((k.outline.min(axis=0) + k.outline.max(axis=0)) / 2, half) - (0.0, half, 0.0)
               for k in storyboard.object_keys if k.object == obj.id and first <= k.frame <= last]
-    for path in (p for p in storyboard.object_paths if p.object == obj.id):
+    for path in (p for p in storyboard.object_paths if p.object == obj.id and not places):
         places += [cam.unproject_to_height(path.points[i], 0.0)
                    for i, frame in ((0, path.start), (-1, path.end)) if first <= frame <= last]
     return np.mean(places, axis=0) if places else None
@@ -318,10 +318,10 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
         held_pos = gaussian_filter1d(fit_pos[start:end + 1], config.smooth_sigma, axis=0, mode="nearest")
         held_yaw = gaussian_filter1d(fit_yaw[start:end + 1], config.smooth_sigma, mode="nearest")
         held_pos[:, 1] = np.maximum(held_pos[:, 1], config.rest_height)  # never through the floor
-        if start > 0:  # lifted from where it lay over a few frames, not popped into the hands
+        if start > 0:  # lifted from where it lay, the hands' gap to it closing over a few frames
             w = smoothstep(np.arange(end - start + 1) / max(config.lift_frames, 1))
-            held_pos = pos[start - 1] + w[:, None] * (held_pos - pos[start - 1])
-            held_yaw = blend_yaw(yaw[start - 1], held_yaw, w)
+            held_pos = held_pos + (1.0 - w[:, None]) * (pos[start - 1] - held_pos[0])
+            held_yaw = held_yaw + (1.0 - w) * wrap_angle(yaw[start - 1] - held_yaw[0])
         pos[start:end + 1], yaw[start:end + 1] = held_pos, held_yaw
         # Released, it drops under gravity to the ground and rests there until the next hold (or
         # the end), sliding on its way to where the sketch puts it down.

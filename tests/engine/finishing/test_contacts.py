@@ -1,6 +1,8 @@
 """Finishing, contacts and held objects (contacts.py, held.py, tested together: a hold is judged
 by where the hands end up): held objects follow the hands and rest on the ground otherwise;
 wrists reach their grips (or the other person's hand) by exact-length arm IK."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -398,3 +400,20 @@ def test_a_shared_hold_moves_across_towards_a_holder_it_is_beyond_the_reach_of()
     moved = _within_reach_across(fitted, np.zeros(n), joints, grips, held, config)
     assert beyond(moved).max() < 0.005
     np.testing.assert_allclose(moved[:, [0, 1]], fitted[:, [0, 1]])     # across only, along the line
+
+
+def test_a_resting_object_is_where_its_outline_stands_not_where_its_path_starts():
+    """An artist starts an object's path in the middle of its outline; the path's ends are taken
+    for the object's base, and averaged with the outline's place they put a box picked up by a
+    stamped crouch 14 cm from the grips the hands were posed on. A drawn outline is the cue; a
+    path's end only where no outline is drawn."""
+    from engine.finishing.held import sketched_rest
+    clip = synthesize("carry_together", 3, fps=20)
+    sb = sketchify(clip, 4, 0.0, 3)
+    base = clip.obj_pose[0, 0, :3]
+    np.testing.assert_allclose(sketched_rest(sb, 0, 0, 5), base, atol=0.03)
+    outlined = replace(sb, object_paths=[replace(sb.object_paths[0], points=sb.object_paths[0].points.copy())])
+    outlined.object_paths[0].points[0] = next(k for k in sb.object_keys if k.frame == 0).outline.mean(axis=0)
+    np.testing.assert_allclose(sketched_rest(outlined, 0, 0, 5), base, atol=0.03)
+    unoutlined = replace(sb, object_keys=[k for k in sb.object_keys if k.frame > 5])
+    np.testing.assert_allclose(sketched_rest(unoutlined, 0, 0, 5), base, atol=0.03)
