@@ -6,10 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from engine.facing import depth_of, facing, lift
+from engine.finishing.held import sketched_rest
 from engine.poses import REACHES_FOR, library_pose, library_pose_2d, reach_of, standing_pose_2d
 from engine.skeleton import FEET, JOINT_INDEX, NUM_JOINTS
 from engine.storyboard import Keypose, Storyboard
-from engine.synth.reach import heading_of
+from engine.synth.reach import heading_of, yaw_matrix
+
+LEFT, RIGHT = JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"]
 
 
 def previous_keypose(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
@@ -39,33 +42,109 @@ def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.
     standing where the agent stands (see `placed_pose`), facing the way the agent's keypose before
     it faces (the library's poses all face +Z: a giver on the left held the box out away from the
     taker, a carrier turned back on the box at every key). A pose that reaches for a person or an
-    object (engine.poses.REACHES_FOR) reaches towards the nearest one drawn then instead, to its
-    left or right on the sketch."""
+    object (engine.poses.REACHES_FOR) reaches for the nearest one drawn then instead (`_aim`)."""
     mask = np.ones(NUM_JOINTS, bool)
     points, _ = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera), mask)
-    yaw = _reach_yaw(sb, agent, frame, name, points[0])
+    feet = lift(points, sb.camera)[list(FEET)].mean(0) * (1.0, 0.0, 1.0)   # where it stands, on the floor
+    yaw, hands = _aim(sb, agent, frame, name, points, feet)
     if yaw is None:
         yaw = _previous_facing(sb, agent, frame)
-    points, mask = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera, yaw), mask)
-    return points, mask, depth_of(library_pose(name, yaw), sb.camera)
+    if hands is not None:   # from the floor into the library pose's own place
+        hands = hands - (feet - library_pose(name, yaw)[list(FEET)].mean(0) * (1.0, 0.0, 1.0))
+    reach = PICK_UP_REACH if REACHES_FOR.get(name) == "resting object" else 1.0
+    points, mask = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera, yaw, hands, reach), mask)
+    return points, mask, depth_of(library_pose(name, yaw, hands, reach), sb.camera)
 
 
-def _reach_yaw(sb: Storyboard, agent: str, frame: int, name: str, pelvis: np.ndarray) -> float | None:
-    """The yaw that turns library pose `name`'s reach to point along the sketch towards the
-    nearest of what it reaches for, seen from `pelvis` (2,): another person (their keypose at
-    `frame`, or the one before) or an object key at `frame`; None where there is none."""
-    if REACHES_FOR.get(name) == "person":
-        keys = [key_at_or_before(sb, a.id, frame) for a in sb.agents if a.id != agent]
-        places = [k.points[0] for k in keys if k is not None and k.mask[0]]
-    elif REACHES_FOR.get(name) == "object":
-        places = [key.outline.mean(0) for key in sb.object_keys if key.frame == frame]
-    else:
-        places = []
+def _aim(sb: Storyboard, agent: str, frame: int, name: str, points: np.ndarray, feet: np.ndarray
+         ) -> tuple[float | None, np.ndarray | None]:
+    """(yaw, world wrist targets (2, 3) or None) that turn library pose `name`, for the figure
+    `points` (22, 2) standing at `feet` (3,) on the floor, towards the nearest of what it reaches
+    for: a pick-up, with its hands on the grips of the object where it rests then; a hand over,
+    with its hands held out to meet the other person's halfway (at arm's length, a giver's and
+    a taker's met 20 cm past each other and the box went into the giver); a carry, to the left
+    or right on the sketch, at an object drawn at `frame`. (None, None) where there is none."""
+    reaches = REACHES_FOR.get(name)
+    if reaches == "resting object":
+        held = [g for g in (_resting_grips(sb, o, frame) for o in range(len(sb.objects))) if g is not None]
+        if not held:
+            return None, None
+        grips = min(held, key=lambda g: float(np.linalg.norm((g.mean(0) - feet)[[0, 2]])))
+        yaw = _across(sb, (grips.mean(0) - feet) @ sb.camera.basis()[0], name)
+        return yaw, _hands_on(grips, library_pose(name, yaw), feet, lifted=name == "lift")
+    if reaches == "person":
+        others = [key_at_or_before(sb, a.id, frame) for a in sb.agents if a.id != agent]
+        places = [lift(k.points, sb.camera, k.depth)[list(FEET)].mean(0) * (1.0, 0.0, 1.0)
+                  for k in others if k is not None and k.mask[list(FEET)].all()]
+        if not places:
+            return None, None
+        other = min(places, key=lambda p: float(np.linalg.norm(p - feet)))
+        yaw = float(heading_of(other - feet) - heading_of(reach_of(name)))
+        return yaw, _meeting_hands(name, yaw, feet, other)
+    places = [key.outline.mean(0) for key in sb.object_keys if key.frame == frame] if reaches == "object" else []
     if not places:
-        return None
-    nearest = min(places, key=lambda p: float(np.linalg.norm(p - pelvis)))
-    towards = np.sign(nearest[0] - pelvis[0]) or 1.0
-    return float(heading_of(towards * sb.camera.basis()[0]) - heading_of(reach_of(name)))
+        return None, None
+    nearest = min(places, key=lambda p: float(np.linalg.norm(p - points[0])))
+    return _across(sb, nearest[0] - points[0][0], name), None
+
+
+def _across(sb: Storyboard, towards: float, name: str) -> float:
+    """The yaw that turns library pose `name`'s reach square to the sketch's right (`towards` > 0)
+    or left: people facing each other across the sketch stay so when they carry on."""
+    return float(heading_of((np.sign(towards) or 1.0) * sb.camera.basis()[0]) - heading_of(reach_of(name)))
+
+
+# Of an arm's length: a pick-up reaches its grips with the elbows bent (straight, at the stamp's
+# full reach, a person's arms shorter than the library's fell 9-15 cm short of a box's grips).
+PICK_UP_REACH = 0.9
+HAND_GAP = 0.15   # m between two people's hands that meet (a box's width where one is drawn: more)
+
+
+def _meeting_hands(name: str, yaw: float, feet: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """World wrist targets (2, 3) of library pose `name` turned by `yaw` at `feet`, held out no
+    further than to meet hands held out from `other` (3,) halfway."""
+    pose = library_pose(name, yaw)
+    wrists = pose[[LEFT, RIGHT]] - pose[list(FEET)].mean(0) * (1.0, 0.0, 1.0) + feet
+    ahead = (other - feet) / max(float(np.linalg.norm(other - feet)), 1e-9)
+    out = (wrists - feet) @ ahead                                      # how far forward each hand is
+    most = max(float(np.linalg.norm(other - feet)) / 2 - HAND_GAP / 2, 0.2)
+    return wrists - np.maximum(out - most, 0.0)[:, None] * ahead
+
+
+def _hands_on(grips: np.ndarray, pose: np.ndarray, feet: np.ndarray, lifted: bool) -> np.ndarray:
+    """World wrist targets (2, 3): the two of an object's grips (K, 3) on the side nearest the pose
+    (22, 3) standing at `feet` (one carrier of two takes the end before them, not both ends), the
+    left hand on the left one; at the pose's own wrist height where the object is `lifted` off
+    the floor."""
+    wrists = pose[[LEFT, RIGHT]] - pose[list(FEET)].mean(0) * (1.0, 0.0, 1.0) + feet
+    left = pose[JOINT_INDEX["l_hip"]] - pose[JOINT_INDEX["r_hip"]]
+    pairs = [(i, j) for i in range(len(grips)) for j in range(len(grips)) if i != j and (grips[i] - grips[j]) @ left >= 0]
+
+    def farness(pair):   # from the feet, then (a tenth as much) from the pose's own wrists
+        i, j = pair
+        return float(np.linalg.norm(((grips[i] + grips[j]) / 2 - feet)[[0, 2]])
+                     + 0.1 * (np.linalg.norm(grips[i] - wrists[0]) + np.linalg.norm(grips[j] - wrists[1])))
+
+    hands = grips[list(min(pairs or [(0, min(1, len(grips) - 1))], key=farness))].copy()
+    if lifted:
+        hands[:, 1] = np.maximum(hands[:, 1], wrists[:, 1])
+    return hands
+
+
+def _resting_grips(sb: Storyboard, o: int, frame: int) -> np.ndarray | None:
+    """World grips (K, 3) of object o where it rests at `frame` as finishing will put it (the
+    sketch's cues since its last hold before `frame`: engine.finishing.held.sketched_rest), square
+    to the sketch as the contact tool shows them (engine.grips.anchors_in_sketch); where nothing
+    is sketched that early, where its first key draws it. None without keys."""
+    obj = sb.objects[o].id
+    since = 1 + max((c.end for c in sb.contacts if c.object == obj and c.end < frame), default=-1)
+    place = sketched_rest(sb, o, since, frame)
+    if place is None:
+        first = min((k.frame for k in sb.object_keys if k.object == obj), default=None)
+        if first is None:
+            return None
+        place = sketched_rest(sb, o, first, first)
+    return place + sb.objects[o].spec.anchors @ yaw_matrix(np.array(np.deg2rad(sb.camera.azimuth_deg))).T
 
 
 def _previous_facing(sb: Storyboard, agent: str, frame: int) -> float:

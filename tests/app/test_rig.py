@@ -268,6 +268,89 @@ def test_a_stamped_hand_over_reaches_towards_the_other_person(qtbot, make_window
     assert np.all(key.points[hands, 0] - key.points[J["pelvis"], 0] > 0.2)   # still towards B
 
 
+def lying_box(qtbot, window, frame: int, place: float):
+    """A on the floor at `frame` beside a box drawn on the floor at frame 0 (real mouse events),
+    `place` m to the box's left on the sketch. Returns the box's resting grips (4, 3), world."""
+    from engine.finishing.held import sketched_rest
+    from engine.skeleton import FEET
+    from engine.synth.reach import yaw_matrix
+    doc, canvas = window.doc, window.canvas
+    doc.set_frame(0)
+    doc.select(agent="A")
+    doc.set_tool("keypose")
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (-1.2, 0.0)))
+    window.stamp_pose("stand")
+    floor = cmd.find_keypose(doc.storyboard, "A", 0).points[list(FEET), 1].min()
+    doc.set_tool("object")
+    drag(qtbot, canvas, np.array([0.05, floor]), np.array([0.45, floor + 0.3]))
+    doc.set_frame(frame)
+    doc.set_tool("keypose")
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (0.05 - place, 0.0)))
+    sb = doc.storyboard
+    turn = yaw_matrix(np.array(np.deg2rad(sb.camera.azimuth_deg)))   # square to the sketch, as the contact tool shows it
+    return sketched_rest(sb, 0, 0, frame) + sb.objects[0].spec.anchors @ turn.T
+
+
+def test_a_stamped_pick_up_has_its_hands_on_the_grips_of_the_box_lying_there(qtbot, make_window):
+    """A crouch-reach stamped beside a box drawn on the floor faced away from it and held its
+    hands 25 cm above and 50 cm beside the box's grips: a lift drawn so missed its grips by
+    50 cm at the start of the hold. Now it reaches the two grips on the side facing it, bending at
+    the hips and knees as far as it takes; a lift holds them there, raised."""
+    from engine.facing import lift
+    from engine.finishing.warp import WarpConfig
+    from engine.skeleton import FEET
+    window = make_window()
+    doc = window.doc
+    grips = lying_box(qtbot, window, 40, 0.2)
+    hands = [J["l_wrist"], J["r_wrist"]]
+    for name in ("crouch-reach", "lift"):
+        window.stamp_pose(name)
+        key = cmd.find_keypose(doc.storyboard, "A", 40)
+        world = lift(key.points, doc.storyboard.camera, key.depth)
+        world[:, 1] += WarpConfig.foot_height - world[list(FEET), 1].min()   # its lower foot where finishing stands it
+        near = grips[[np.argmin(np.linalg.norm(grips - w, axis=1)) for w in world[hands]]]
+        feet = world[list(FEET)].mean(0)
+        assert np.linalg.norm(near.mean(0) - feet) < np.linalg.norm(grips.mean(0) - feet)   # the side facing A
+        if name == "crouch-reach":
+            np.testing.assert_allclose(world[hands], near, atol=0.02)
+        else:
+            np.testing.assert_allclose(world[hands][:, [0, 2]], near[:, [0, 2]], atol=0.02)
+            assert np.all(world[hands, 1] > near[:, 1] + 0.1)
+
+
+def test_a_lift_posed_with_the_stamps_holds_the_box_from_the_first_frame_of_its_hold(qtbot, make_window):
+    """The shipped model and finishing on a solo lift posed as an artist poses one: a box on the
+    floor, a crouch-reach beside it at the hold's first frame, a lift, a carry, both hands joined
+    to the grips nearest them. The hands missed the box by 50 cm at the hold's first frames."""
+    from engine.finishing.misses import hold_gaps
+    from engine.grips import anchors_in_sketch
+    from engine.models.bundle import load_default
+    from engine.request import Request
+    from engine.sampling.config import sampler_config
+    from engine.sampling.sampler import sample
+    from engine.generate import run_generation
+    from app.generation import drawn_cast
+    from engine.storyboard import Contact
+    window = make_window()
+    doc = window.doc
+    lying_box(qtbot, window, 40, 0.2)
+    window.stamp_pose("crouch-reach")
+    for frame, name, u in ((60, "lift", None), (119, "carry", 1.3)):
+        doc.set_frame(frame)
+        if u is not None:
+            qtbot.mouseClick(window.canvas, Qt.LeftButton, pos=px(window.canvas, (u, 0.0)))
+        window.stamp_pose(name)
+    sb = doc.storyboard
+    shown = anchors_in_sketch(sb.objects[0].spec.anchors, sb.object_keys[0].outline, sb.camera)
+    key = cmd.find_keypose(sb, "A", 40)
+    for hand, wrist in (("left", J["l_wrist"]), ("right", J["r_wrist"])):
+        grip = int(np.argmin(np.linalg.norm(shown - key.points[wrist], axis=1)))
+        doc.undo_stack.push(cmd.AddContact(doc, Contact("A", hand, 40, 119, object=sb.objects[0].id, anchor=grip)))
+    result = run_generation(sample(load_default(), Request.build(drawn_cast(doc.storyboard), sampler_config(seed=0))))
+    gaps = hold_gaps(result.clips[0], doc.storyboard)
+    assert len(gaps) == 2 and max(gap.max() for _, _, gap in gaps) < 0.08, [gap.max() for _, _, gap in gaps]   # 4 cm
+
+
 def test_copy_a_pose_and_paste_it_on_the_other_agent_where_it_stands(qtbot, make_window):
     from engine.skeleton import FEET
     window = make_window()
