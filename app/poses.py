@@ -132,13 +132,21 @@ def _hands_on(grips: np.ndarray, pose: np.ndarray, feet: np.ndarray, lifted: boo
 
 
 def _resting_grips(sb: Storyboard, o: int, frame: int) -> np.ndarray | None:
-    """World grips (K, 3) of object o where it rests at `frame` as finishing will put it (the
-    sketch's cues since its last hold before `frame`: engine.finishing.held.sketched_rest), square
-    to the sketch as the contact tool shows them (engine.grips.anchors_in_sketch); where nothing
-    is sketched that early, where its first key draws it. None without keys."""
+    """World grips (K, 3) of object o on the floor where a pick-up or put-down at `frame` finds it,
+    as finishing places it (engine.finishing.held.sketched_rest): drawn at `frame`; else, held
+    since before `frame`, where the sketch puts it down after; else where it rests since its last
+    hold; else where its first key draws it. Square to the sketch, as the contact tool shows its
+    grips (engine.grips.anchors_in_sketch). None without keys."""
     obj = sb.objects[o].id
-    since = 1 + max((c.end for c in sb.contacts if c.object == obj and c.end < frame), default=-1)
-    place = sketched_rest(sb, o, since, frame)
+    holds = sorted((c.start, c.end) for c in sb.contacts if c.object == obj)
+    carrying = [end for start, end in holds if start < frame <= end]
+    if any(k.object == obj and k.frame == frame for k in sb.object_keys):
+        place = sketched_rest(sb, o, frame, frame)
+    elif carrying:   # a put-down: where it lands
+        after = max(carrying)
+        place = sketched_rest(sb, o, after + 1, min((s for s, _ in holds if s > after), default=sb.length) - 1)
+    else:
+        place = sketched_rest(sb, o, 1 + max((end for _, end in holds if end < frame), default=-1), frame)
     if place is None:
         first = min((k.frame for k in sb.object_keys if k.object == obj), default=None)
         if first is None:

@@ -318,6 +318,36 @@ def test_a_stamped_pick_up_has_its_hands_on_the_grips_of_the_box_lying_there(qtb
             assert np.all(world[hands, 1] > near[:, 1] + 0.1)
 
 
+def test_a_stamped_put_down_reaches_for_the_box_where_it_is_put_down(qtbot, make_window):
+    """A crouch-reach stamped at the end of a hold puts the box down where the sketch lands it
+    (its path's end), not where it lay before the hold."""
+    from engine.facing import lift
+    from engine.finishing.held import sketched_rest
+    from engine.finishing.warp import WarpConfig
+    from engine.skeleton import FEET
+    from engine.storyboard import Contact, ObjectPath
+    from engine.synth.reach import yaw_matrix
+    window = make_window()
+    doc = window.doc
+    before = lying_box(qtbot, window, 60, -1.0)            # A stands 1 m right of the box at 60
+    sb = doc.storyboard
+    start = sb.object_keys[0].outline.mean(0)
+    doc.undo_stack.push(cmd.AddStroke(doc, "object_paths", ObjectPath(sb.objects[0].id, 0, sb.length - 1,
+                                                                      start + np.linspace([0.0, 0.0], [1.3, 0.0], 8))))
+    for hand in ("left", "right"):
+        doc.undo_stack.push(cmd.AddContact(doc, Contact("A", hand, 10, 60, object=sb.objects[0].id, anchor=0)))
+    window.stamp_pose("crouch-reach")
+    sb = doc.storyboard
+    turn = yaw_matrix(np.array(np.deg2rad(sb.camera.azimuth_deg)))
+    landed = sketched_rest(sb, 0, 61, sb.length - 1) + sb.objects[0].spec.anchors @ turn.T
+    key = cmd.find_keypose(sb, "A", 60)
+    world = lift(key.points, sb.camera, key.depth)
+    world[:, 1] += WarpConfig.foot_height - world[list(FEET), 1].min()
+    hands = world[[J["l_wrist"], J["r_wrist"]]]
+    assert np.linalg.norm(landed.mean(0) - before.mean(0)) > 0.8
+    assert max(np.min(np.linalg.norm(landed - w, axis=1)) for w in hands) < 0.04   # 2.7 cm: at the arms' reach
+
+
 def test_a_lift_posed_with_the_stamps_holds_the_box_from_the_first_frame_of_its_hold(qtbot, make_window):
     """The shipped model and finishing on a solo lift posed as an artist poses one: a box on the
     floor, a crouch-reach beside it at the hold's first frame, a lift, a carry, both hands joined
