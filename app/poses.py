@@ -39,18 +39,23 @@ def new_keypose(sb: Storyboard, agent: str, frame: int) -> tuple[np.ndarray, np.
 
 def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(points (22, 2), mask (22,), depth (22,)) of library pose `name` for the agent at `frame`,
-    standing where the agent stands (see `placed_pose`), facing the way the agent's keypose before
-    it faces (the library's poses all face +Z: a giver on the left held the box out away from the
-    taker, a carrier turned back on the box at every key). A pose that reaches for a person or an
-    object (engine.poses.REACHES_FOR) reaches for the nearest one drawn then instead (`_aim`)."""
+    standing where the agent stands (see `placed_pose`). A pose that reaches for a person or an
+    object (engine.poses.REACHES_FOR) reaches for the nearest one drawn then (`_aim`); any other,
+    and a carry of the agent's alone, faces the way the agent walks to this key (or from it, at
+    the first), else the way their keypose before it faces (the library's poses all face +Z: a
+    giver on the left held the box out away from the taker, a carrier turned back on the box at
+    every key; facing the way the hand over before it faced, a taker walked the box away
+    backwards; facing the way they walk, two carriers of one box turned their backs on it)."""
     mask = np.ones(NUM_JOINTS, bool)
     points, _ = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera), mask)
-    feet = lift(points, sb.camera)[list(FEET)].mean(0) * (1.0, 0.0, 1.0)   # where it stands, on the floor
+    feet = _on_floor(points, sb)
     yaw, hands = _aim(sb, agent, frame, name, points, feet)
+    if yaw is None and (REACHES_FOR.get(name) is None or _holders(sb, agent, frame) == [agent]):
+        yaw = _walking_facing(sb, agent, frame, feet)
     if yaw is None:
         yaw = _previous_facing(sb, agent, frame)
     if hands is not None:   # from the floor into the library pose's own place
-        hands = hands - (feet - library_pose(name, yaw)[list(FEET)].mean(0) * (1.0, 0.0, 1.0))
+        hands = hands - _to_stand_at(library_pose(name, yaw), feet)
     reach = PICK_UP_REACH if REACHES_FOR.get(name) == "resting object" else 1.0
     points, mask = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera, yaw, hands, reach), mask)
     return points, mask, depth_of(library_pose(name, yaw, hands, reach), sb.camera)
@@ -63,7 +68,8 @@ def _aim(sb: Storyboard, agent: str, frame: int, name: str, points: np.ndarray, 
     for: a pick-up, with its hands on the grips of the object where it rests then; a hand over,
     with its hands held out to meet the other person's halfway (at arm's length, a giver's and
     a taker's met 20 cm past each other and the box went into the giver); a carry, to the left
-    or right on the sketch, at an object drawn at `frame`. (None, None) where there is none."""
+    or right on the sketch, at an object drawn at `frame`, else at the others who hold what the
+    agent holds then. (None, None) where there is none."""
     reaches = REACHES_FOR.get(name)
     if reaches == "resting object":
         held = [g for g in (_resting_grips(sb, o, frame) for o in range(len(sb.objects))) if g is not None]
@@ -74,18 +80,26 @@ def _aim(sb: Storyboard, agent: str, frame: int, name: str, points: np.ndarray, 
         return yaw, _hands_on(grips, library_pose(name, yaw), feet, lifted=name == "lift")
     if reaches == "person":
         others = [key_at_or_before(sb, a.id, frame) for a in sb.agents if a.id != agent]
-        places = [lift(k.points, sb.camera, k.depth)[list(FEET)].mean(0) * (1.0, 0.0, 1.0)
-                  for k in others if k is not None and k.mask[list(FEET)].all()]
+        places = [_on_floor(k.points, sb, k.depth) for k in others if k is not None and k.mask[list(FEET)].all()]
         if not places:
             return None, None
         other = min(places, key=lambda p: float(np.linalg.norm(p - feet)))
         yaw = float(heading_of(other - feet) - heading_of(reach_of(name)))
         return yaw, _meeting_hands(name, yaw, feet, other)
     places = [key.outline.mean(0) for key in sb.object_keys if key.frame == frame] if reaches == "object" else []
+    if not places and reaches == "object":   # carried with others: facing them across it
+        others = [key_at_or_before(sb, a, frame) for a in _holders(sb, agent, frame) if a != agent]
+        places = [k.points[0] for k in others if k is not None and k.mask[0]]
     if not places:
         return None, None
     nearest = min(places, key=lambda p: float(np.linalg.norm(p - points[0])))
     return _across(sb, nearest[0] - points[0][0], name), None
+
+
+def _holders(sb: Storyboard, agent: str, frame: int) -> list[str]:
+    """Everyone holding, at `frame`, an object `agent` holds then (the contacts drawn so far)."""
+    held = {c.object for c in sb.contacts if c.agent == agent and c.object and c.start <= frame <= c.end}
+    return sorted({c.agent for c in sb.contacts if c.object in held and c.start <= frame <= c.end})
 
 
 def _across(sb: Storyboard, towards: float, name: str) -> float:
@@ -104,7 +118,7 @@ def _meeting_hands(name: str, yaw: float, feet: np.ndarray, other: np.ndarray) -
     """World wrist targets (2, 3) of library pose `name` turned by `yaw` at `feet`, held out no
     further than to meet hands held out from `other` (3,) halfway."""
     pose = library_pose(name, yaw)
-    wrists = pose[[LEFT, RIGHT]] - pose[list(FEET)].mean(0) * (1.0, 0.0, 1.0) + feet
+    wrists = pose[[LEFT, RIGHT]] + _to_stand_at(pose, feet)
     ahead = (other - feet) / max(float(np.linalg.norm(other - feet)), 1e-9)
     out = (wrists - feet) @ ahead                                      # how far forward each hand is
     most = max(float(np.linalg.norm(other - feet)) / 2 - HAND_GAP / 2, 0.2)
@@ -116,7 +130,7 @@ def _hands_on(grips: np.ndarray, pose: np.ndarray, feet: np.ndarray, lifted: boo
     (22, 3) standing at `feet` (one carrier of two takes the end before them, not both ends), the
     left hand on the left one; at the pose's own wrist height where the object is `lifted` off
     the floor."""
-    wrists = pose[[LEFT, RIGHT]] - pose[list(FEET)].mean(0) * (1.0, 0.0, 1.0) + feet
+    wrists = pose[[LEFT, RIGHT]] + _to_stand_at(pose, feet)
     left = pose[JOINT_INDEX["l_hip"]] - pose[JOINT_INDEX["r_hip"]]
     pairs = [(i, j) for i in range(len(grips)) for j in range(len(grips)) if i != j and (grips[i] - grips[j]) @ left >= 0]
 
@@ -153,6 +167,32 @@ def _resting_grips(sb: Storyboard, o: int, frame: int) -> np.ndarray | None:
             return None
         place = sketched_rest(sb, o, first, first)
     return place + sb.objects[o].spec.anchors @ yaw_matrix(np.array(np.deg2rad(sb.camera.azimuth_deg))).T
+
+
+def _to_stand_at(pose: np.ndarray, feet: np.ndarray) -> np.ndarray:
+    """The horizontal move (3,) that stands a 3D pose (22, 3) with its feet at `feet` (3,)."""
+    return (feet - pose[list(FEET)].mean(0)) * (1.0, 0.0, 1.0)
+
+
+def _on_floor(points: np.ndarray, sb: Storyboard, depth: np.ndarray | None = None) -> np.ndarray:
+    """The world point (3,) on the floor under a figure's (22, 2) feet."""
+    return lift(points, sb.camera, depth)[list(FEET)].mean(0) * (1.0, 0.0, 1.0)
+
+
+WALK = 0.4   # m between two keys' feet: a person who goes further walks there, facing the way
+
+
+def _walking_facing(sb: Storyboard, agent: str, frame: int, feet: np.ndarray) -> float | None:
+    """The yaw of someone standing at `feet` (3,) at `frame` who walked there from their key
+    before (further than WALK), or, at their first key, walks on to the next; else None."""
+    before = previous_keypose(sb, agent, frame)
+    later = [k for k in sb.keyposes if k.agent == agent and k.frame > frame]
+    for key, sign in ((before, 1.0), (min(later, key=lambda k: k.frame) if later and before is None else None, -1.0)):
+        if key is not None and key.mask[list(FEET)].all():
+            way = sign * (feet - _on_floor(key.points, sb, key.depth))
+            if np.linalg.norm(way) > WALK:
+                return float(heading_of(way))
+    return None
 
 
 def _previous_facing(sb: Storyboard, agent: str, frame: int) -> float:

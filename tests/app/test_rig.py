@@ -381,6 +381,45 @@ def test_a_lift_posed_with_the_stamps_holds_the_box_from_the_first_frame_of_its_
     assert len(gaps) == 2 and max(gap.max() for _, _, gap in gaps) < 0.08, [gap.max() for _, _, gap in gaps]   # 4 cm
 
 
+def test_a_stamp_faces_the_way_the_person_walked_there_and_a_carry_its_partner(qtbot, make_window):
+    """Facing the way the key before faced, a taker who turned to the giver for a hand over walked
+    the box away backwards, and a person who walked across the floor arrived facing back. A pose
+    that reaches for nothing, or a carry of the person's alone, faces the way they walked there; a
+    carry with a partner faces the partner."""
+    from engine.facing import facing, lift
+    from engine.storyboard import Contact
+    from engine.synth.reach import heading_of
+    window = make_window()
+    doc, canvas = window.doc, window.canvas
+    right = heading_of(doc.storyboard.camera.basis()[0])
+    hands = [J["l_wrist"], J["r_wrist"]]
+
+    def key_at(agent, frame, u, name):
+        doc.set_frame(frame)
+        doc.select(agent=agent)
+        doc.set_tool("keypose")
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+        window.stamp_pose(name)
+        return cmd.find_keypose(doc.storyboard, agent, frame)
+
+    def turn_from_right(key):
+        return abs(np.angle(np.exp(1j * (facing(lift(key.points, doc.storyboard.camera, key.depth)) - right))))
+
+    key_at("A", 0, 1.4, "stand")
+    assert turn_from_right(key_at("A", 60, 0.3, "stand")) > np.deg2rad(165)         # walked left
+    for agent, u in (("A", -0.5), ("B", 0.5)):
+        key_at(agent, 80, u, "hand over")
+    doc.undo_stack.push(cmd.SetObjectKey(doc, "box1", 0, np.array([[-1.35, 0.1], [-1.05, 0.1], [-1.05, 0.3], [-1.35, 0.3]])))
+    for agent, (start, end) in (("A", (0, 84)), ("B", (76, 119))):
+        for hand in ("left", "right"):
+            doc.undo_stack.push(cmd.AddContact(doc, Contact(agent, hand, start, end, object="box1", anchor=0)))
+    alone = key_at("B", 119, 1.5, "carry")                                          # B walks it away
+    assert turn_from_right(alone) < np.deg2rad(15)
+    assert np.all(alone.points[hands, 0] > alone.points[J["pelvis"], 0] + 0.1)
+    shared = key_at("A", 80, -0.5, "carry")               # A walked left to 80, where A and B hold it
+    assert np.all(shared.points[hands, 0] > shared.points[J["pelvis"], 0] + 0.1)   # towards B
+
+
 def test_copy_a_pose_and_paste_it_on_the_other_agent_where_it_stands(qtbot, make_window):
     from engine.skeleton import FEET
     window = make_window()
