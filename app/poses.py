@@ -7,7 +7,7 @@ import numpy as np
 
 from engine.facing import depth_of, facing, lift
 from engine.finishing.held import sketched_rest
-from engine.poses import REACHES_FOR, library_pose, library_pose_2d, reach_of, standing_pose_2d
+from engine.poses import REACHES_FOR, hands_placed, library_pose, library_pose_2d, reach_of, standing_pose_2d
 from engine.skeleton import FEET, JOINT_INDEX, NUM_JOINTS
 from engine.storyboard import Keypose, Storyboard
 from engine.synth.reach import heading_of, yaw_matrix
@@ -80,12 +80,12 @@ def _aim(sb: Storyboard, agent: str, frame: int, name: str, points: np.ndarray, 
         return yaw, _hands_on(grips, library_pose(name, yaw), feet, lifted=name == "lift")
     if reaches == "person":
         others = [key_at_or_before(sb, a.id, frame) for a in sb.agents if a.id != agent]
-        places = [_on_floor(k.points, sb, k.depth) for k in others if k is not None and k.mask[list(FEET)].all()]
-        if not places:
+        others = [k for k in others if k is not None and k.mask[list(FEET)].all() and k.mask[0]]
+        if not others:
             return None, None
-        other = min(places, key=lambda p: float(np.linalg.norm(p - feet)))
-        yaw = float(heading_of(other - feet) - heading_of(reach_of(name)))
-        return yaw, _meeting_hands(name, yaw, feet, other)
+        other = min(others, key=lambda k: float(np.linalg.norm(_on_floor(k.points, sb, k.depth) - feet)))
+        yaw = float(heading_of(_on_floor(other.points, sb, other.depth) - feet) - heading_of(reach_of(name)))
+        return yaw, _meeting_hands(name, yaw, feet, lift(other.points, sb.camera, other.depth)[0])
     places = [key.outline.mean(0) for key in sb.object_keys if key.frame == frame] if reaches == "object" else []
     if not places and reaches == "object":   # carried with others: facing them across it
         others = [key_at_or_before(sb, a, frame) for a in _holders(sb, agent, frame) if a != agent]
@@ -111,18 +111,25 @@ def _across(sb: Storyboard, towards: float, name: str) -> float:
 # Of an arm's length: a pick-up reaches its grips with the elbows bent (straight, at the stamp's
 # full reach, a person's arms shorter than the library's fell 9-15 cm short of a box's grips).
 PICK_UP_REACH = 0.9
-HAND_GAP = 0.15   # m between two people's hands that meet (a box's width where one is drawn: more)
+HAND_GAP = {"hand over": 0.15, "shake hands": 0.05}   # m between two people's hands that meet
+FURTHER = 0.1     # m beyond its own reach that a pose's hands go to meet someone's
 
 
 def _meeting_hands(name: str, yaw: float, feet: np.ndarray, other: np.ndarray) -> np.ndarray:
-    """World wrist targets (2, 3) of library pose `name` turned by `yaw` at `feet`, held out no
-    further than to meet hands held out from `other` (3,) halfway."""
+    """World wrist targets (2, 3) of library pose `name` turned by `yaw` at `feet`: the hands it
+    places held out to meet, halfway, hands held out from the pelvis `other` (3,), where that is at
+    most a little further than the pose's own reach (a handshake's hands stopped 20 cm short); as
+    the pose holds them where the other is further."""
     pose = library_pose(name, yaw)
-    wrists = pose[[LEFT, RIGHT]] + _to_stand_at(pose, feet)
-    ahead = (other - feet) / max(float(np.linalg.norm(other - feet)), 1e-9)
-    out = (wrists - feet) @ ahead                                      # how far forward each hand is
-    most = max(float(np.linalg.norm(other - feet)) / 2 - HAND_GAP / 2, 0.2)
-    return wrists - np.maximum(out - most, 0.0)[:, None] * ahead
+    pose = pose + _to_stand_at(pose, feet)
+    line = (other - pose[0]) * (1.0, 0.0, 1.0)
+    ahead = line / max(float(np.linalg.norm(line)), 1e-9)
+    placed = hands_placed(name)
+    out = (pose[placed] - pose[0]) @ ahead                             # how far forward each hand is
+    meet = max(float(np.linalg.norm(line)) / 2 - HAND_GAP[name] / 2, 0.2)
+    if meet <= out.max() + FURTHER:                                    # else too far apart to meet
+        pose[placed] += (meet - out)[:, None] * ahead
+    return pose[[LEFT, RIGHT]]
 
 
 def _hands_on(grips: np.ndarray, pose: np.ndarray, feet: np.ndarray, lifted: bool) -> np.ndarray:
@@ -179,7 +186,8 @@ def _on_floor(points: np.ndarray, sb: Storyboard, depth: np.ndarray | None = Non
     return lift(points, sb.camera, depth)[list(FEET)].mean(0) * (1.0, 0.0, 1.0)
 
 
-WALK = 0.4   # m between two keys' feet: a person who goes further walks there, facing the way
+WALK = 0.8   # m between two keys' feet: a person who goes further walks there facing the way (a step
+             # back after a handshake, turned, popped the knees 9-18 cm)
 
 
 def _walking_facing(sb: Storyboard, agent: str, frame: int, feet: np.ndarray) -> float | None:

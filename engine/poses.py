@@ -1,6 +1,6 @@
 """The figures an artist starts a keypose from: the canvas's standing template and a small pose
-library (stand, walk stride, crouch-reach, lift, carry, hand over, hold hands, wave), each a 3D
-pose on the rest skeleton facing +Z, seen through the storyboard camera."""
+library (stand, walk stride, crouch-reach, lift, carry, hand over, shake hands, hold hands,
+wave), each a 3D pose on the rest skeleton facing +Z, seen through the storyboard camera."""
 from __future__ import annotations
 
 import numpy as np
@@ -21,6 +21,7 @@ _LIBRARY = {
                     "l_wrist": (0.2, -0.45, 0.38), "r_wrist": (-0.2, -0.45, 0.38)}),
     "carry": (0.02, {"l_wrist": (0.2, 0.05, 0.35), "r_wrist": (-0.2, 0.05, 0.35)}),
     "hand over": (0.0, {"l_wrist": (0.2, 0.2, 0.5), "r_wrist": (-0.2, 0.2, 0.5)}),   # held out in both hands
+    "shake hands": (0.0, {"r_wrist": (-0.08, 0.15, 0.32)}),                            # the right hand held out
     "hold hands": (0.0, {"r_wrist": (-0.45, -0.12, 0.15)}),
     "wave": (0.0, {"r_wrist": (-0.35, 0.85, 0.1)}),
 }
@@ -28,7 +29,8 @@ POSE_NAMES = tuple(_LIBRARY)
 # What a pose's hands reach for: a stamp turns its reach towards the nearest one drawn then. A
 # pick-up reaches for an object where it rests on the floor (drawn then or before), a carry for
 # one drawn at that frame.
-REACHES_FOR = {"hand over": "person", "crouch-reach": "resting object", "lift": "resting object", "carry": "object"}
+REACHES_FOR = {"hand over": "person", "shake hands": "person", "crouch-reach": "resting object",
+               "lift": "resting object", "carry": "object"}
 _LIMBS = {"l_wrist": ("l_shoulder", "l_elbow"), "r_wrist": ("r_shoulder", "r_elbow"),
           "l_ankle": ("l_hip", "l_knee"), "r_ankle": ("r_hip", "r_knee")}
 
@@ -117,10 +119,16 @@ def _leaned_to_reach(joints: np.ndarray, wrists: list[np.ndarray], reach: float,
     return bent
 
 
+def hands_placed(name: str) -> list[int]:
+    """The wrists library pose `name` puts somewhere (a handshake's right one; both where it puts
+    neither)."""
+    return [J[w] for w in ("l_wrist", "r_wrist") if w in _LIBRARY[name][1]] or [J["l_wrist"], J["r_wrist"]]
+
+
 def reach_of(name: str) -> np.ndarray:
-    """Where library pose `name`'s hands reach, from its pelvis, on the ground plane: (3,)."""
+    """Where library pose `name`'s placed hands reach, from its pelvis, on the ground plane: (3,)."""
     joints = library_pose(name)
-    return (joints[[J["l_wrist"], J["r_wrist"]]].mean(0) - joints[J["pelvis"]]) * (1.0, 0.0, 1.0)
+    return (joints[hands_placed(name)].mean(0) - joints[J["pelvis"]]) * (1.0, 0.0, 1.0)
 
 
 def library_pose_2d(name: str, camera: StoryboardCamera, yaw: float = 0.0, hands: np.ndarray | None = None,

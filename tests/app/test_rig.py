@@ -420,6 +420,34 @@ def test_a_stamp_faces_the_way_the_person_walked_there_and_a_carry_its_partner(q
     assert np.all(shared.points[hands, 0] > shared.points[J["pelvis"], 0] + 0.1)   # towards B
 
 
+def test_stamped_handshakes_meet_halfway(qtbot, make_window):
+    """Two people placed 70 cm apart and stamped shaking hands: their right hands meet (the
+    library's, held out at its own reach and turned so both hands faced the partner, stayed 49 cm
+    apart); a hand over's hands stop short of the partner's instead of passing them."""
+    from engine.facing import lift
+    window = make_window()
+    doc, canvas = window.doc, window.canvas
+    doc.set_frame(FRAME)
+    doc.set_tool("keypose")
+    for agent, u in (("A", -0.35), ("B", 0.35)):
+        doc.select(agent=agent)
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+
+    def stamped(name):
+        for agent in "AB":
+            doc.select(agent=agent)
+            window.stamp_pose(name)
+        return [lift(k.points, doc.storyboard.camera, k.depth) for k in
+                (cmd.find_keypose(doc.storyboard, a, FRAME) for a in "AB")]
+
+    a, b = stamped("shake hands")
+    assert np.linalg.norm(a[J["r_wrist"]] - b[J["r_wrist"]]) < 0.1
+    a, b = stamped("hand over")
+    towards = (b[J["pelvis"]] - a[J["pelvis"]]) * (1.0, 0.0, 1.0)
+    hands = [J["l_wrist"], J["r_wrist"]]
+    assert (a[hands] @ towards).max() + 0.1 * np.linalg.norm(towards) < (b[hands] @ towards).min()   # 10 cm apart
+
+
 def test_copy_a_pose_and_paste_it_on_the_other_agent_where_it_stands(qtbot, make_window):
     from engine.skeleton import FEET
     window = make_window()
