@@ -69,7 +69,7 @@ def _aim(sb: Storyboard, agent: str, frame: int, name: str, points: np.ndarray, 
     with its hands held out to meet the other person's halfway (at arm's length, a giver's and
     a taker's met 20 cm past each other and the box went into the giver); a carry, to the left
     or right on the sketch, at an object drawn at `frame`, else at the others who hold what the
-    agent holds then. (None, None) where there is none."""
+    agent holds then, with its hands on their end of it. (None, None) where there is none."""
     reaches = REACHES_FOR.get(name)
     if reaches == "resting object":
         held = [g for g in (_resting_grips(sb, o, frame) for o in range(len(sb.objects))) if g is not None]
@@ -87,13 +87,21 @@ def _aim(sb: Storyboard, agent: str, frame: int, name: str, points: np.ndarray, 
         yaw = float(heading_of(_on_floor(other.points, sb, other.depth) - feet) - heading_of(reach_of(name)))
         return yaw, _meeting_hands(name, yaw, feet, lift(other.points, sb.camera, other.depth)[0])
     places = [key.outline.mean(0) for key in sb.object_keys if key.frame == frame] if reaches == "object" else []
-    if not places and reaches == "object":   # carried with others: facing them across it
-        others = [key_at_or_before(sb, a, frame) for a in _holders(sb, agent, frame) if a != agent]
-        places = [k.points[0] for k in others if k is not None and k.mask[0]]
-    if not places:
+    if places:
+        nearest = min(places, key=lambda p: float(np.linalg.norm(p - points[0])))
+        return _across(sb, nearest[0] - points[0][0], name), None
+    others = [key_at_or_before(sb, a, frame) for a in _holders(sb, agent, frame) if a != agent] if reaches == "object" else []
+    others = [k for k in others if k is not None and k.mask[0]]
+    if not others:
         return None, None
-    nearest = min(places, key=lambda p: float(np.linalg.norm(p - points[0])))
-    return _across(sb, nearest[0] - points[0][0], name), None
+    # Carried with others: facing them across it, the hands on its grips at their end of it.
+    other = min(others, key=lambda k: float(np.linalg.norm(k.points[0] - points[0])))
+    yaw = _across(sb, other.points[0][0] - points[0][0], name)
+    pose = library_pose(name, yaw)
+    held = next(c.object for c in sb.contacts if c.agent == agent and c.object and c.start <= frame <= c.end)
+    grips = _carried_between(sb.objects[sb.object_index(held)].spec, pose + _to_stand_at(pose, feet),
+                             lift(other.points, sb.camera, other.depth)[0])
+    return yaw, _hands_on(grips, pose, feet, lifted=False)
 
 
 def _holders(sb: Storyboard, agent: str, frame: int) -> list[str]:
@@ -130,6 +138,18 @@ def _meeting_hands(name: str, yaw: float, feet: np.ndarray, other: np.ndarray) -
     if meet <= out.max() + FURTHER:                                    # else too far apart to meet
         pose[placed] += (meet - out)[:, None] * ahead
     return pose[[LEFT, RIGHT]]
+
+
+def _carried_between(spec, pose: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """World grips (K, 3) of an object (spec: engine.objects.ObjectSpec) carried between the pose
+    (22, 3) and another holder's pelvis `other` (3,): level, midway, its grips' ends towards the
+    holders, at the pose's hand height (two carry keys' hands 5-10 cm from where a rigid table
+    between them could be)."""
+    line = (other - pose[0]) * (1.0, 0.0, 1.0)
+    yaw = np.arctan2(-line[2], line[0])                    # the object's +x (its grips' ends) along the line
+    base = (pose[0] + other) / 2 * (1.0, 0.0, 1.0)
+    base[1] = pose[[LEFT, RIGHT], 1].mean() - spec.anchors[:, 1].mean()
+    return base + spec.anchors @ yaw_matrix(np.array(yaw)).T
 
 
 def _hands_on(grips: np.ndarray, pose: np.ndarray, feet: np.ndarray, lifted: bool) -> np.ndarray:

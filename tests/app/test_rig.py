@@ -448,6 +448,36 @@ def test_stamped_handshakes_meet_halfway(qtbot, make_window):
     assert (a[hands] @ towards).max() + 0.1 * np.linalg.norm(towards) < (b[hands] @ towards).min()   # 10 cm apart
 
 
+def test_two_carriers_stamped_hold_one_table_between_them(qtbot, make_window):
+    """Two people holding a table, stamped carrying it: their four hands where one level table's
+    four grips can be (each carry's own hands put the hands 5-10 cm from any such table, and the
+    generated hands missed its grips by that much at the key)."""
+    from itertools import combinations
+    from engine.facing import lift
+    from engine.storyboard import Contact
+    window = make_window()
+    doc, canvas = window.doc, window.canvas
+    doc.undo_stack.push(cmd.SetObjectKey(doc, "table1", 0, np.array([[-0.6, -0.9], [0.6, -0.9], [0.6, -0.3], [-0.6, -0.3]])))
+    doc.undo_stack.push(cmd.SetObjectSpec(doc, "table1", "table", (1.2, 0.74, 0.7)))
+    for agent, anchors in (("A", (0, 1)), ("B", (3, 2))):
+        for hand, anchor in zip(("left", "right"), anchors):
+            doc.undo_stack.push(cmd.AddContact(doc, Contact(agent, hand, 0, 119, object="table1", anchor=anchor)))
+    doc.set_frame(FRAME)
+    doc.set_tool("keypose")
+    for agent, u in (("A", -0.95), ("B", 0.95)):
+        doc.select(agent=agent)
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+    for agent in "AB":
+        doc.select(agent=agent)
+        window.stamp_pose("carry")
+    hands = np.concatenate([lift(k.points, doc.storyboard.camera, k.depth)[[J["l_wrist"], J["r_wrist"]]]
+                            for k in (cmd.find_keypose(doc.storyboard, a, FRAME) for a in "AB")])
+    grips = doc.storyboard.objects[0].spec.anchors
+    apart = lambda p: np.sort([np.linalg.norm(a - b) for a, b in combinations(p, 2)])
+    np.testing.assert_allclose(apart(hands), apart(grips), atol=0.02)
+    assert np.ptp(hands[:, 1]) < 0.02
+
+
 def test_copy_a_pose_and_paste_it_on_the_other_agent_where_it_stands(qtbot, make_window):
     from engine.skeleton import FEET
     window = make_window()
