@@ -1,6 +1,9 @@
 """Starting points for new keyposes: the standing template (engine.poses), a copy of the
 previous keyframe, a pose of the library or a copied pose placed where the figure stands; which
-way a keypose faces."""
+way a keypose faces. A library pose that reaches for something is stamped reaching it: the grips
+of an object lying on the floor, a partner's hands, the grips at the carrier's end of an object
+carried with others (the stamp knows the object's grips and the people's depths in 3D, which the
+artist's 2D drag cannot show)."""
 from __future__ import annotations
 
 import numpy as np
