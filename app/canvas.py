@@ -13,6 +13,7 @@ import numpy as np
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QWidget
 
+from engine.facing import moved_depth
 from engine.poses import standing_pose_2d
 from engine.rig import drag_pose
 from engine.skeleton import JOINT_INDEX, JOINT_NAMES
@@ -287,8 +288,11 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
         if g.kind not in ("joint", "move_object") or np.linalg.norm(delta) <= 1e-6:
             return None
         if g.kind == "joint":
-            return cmd.SetKeypose(self._doc, g.agent, self._doc.frame, self._posed(g), g.pose[1],
-                                  "Pose " + JOINT_NAMES[g.joint])
+            posed, key = self._posed(g), cmd.find_keypose(self._doc.storyboard, g.agent, self._doc.frame)
+            depth = None if key is None or key.depth is None else \
+                moved_depth(g.pose[0], key.depth, posed, self._doc.storyboard.camera)   # bones kept in depth
+            return cmd.SetKeypose(self._doc, g.agent, self._doc.frame, posed, g.pose[1],
+                                  "Pose " + JOINT_NAMES[g.joint], depth)
         return cmd.MoveObjectKey(self._doc, g.index, delta)
 
     def _posed(self, g: _Gesture) -> np.ndarray:

@@ -9,13 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 from engine.facing import depth_of, facing, lift
+from engine.finishing.warp import LEVEL
 from engine.finishing.held import sketched_rest
 from engine.poses import REACHES_FOR, hands_placed, library_pose, library_pose_2d, reach_of, standing_pose_2d
-from engine.skeleton import FEET, JOINT_INDEX, NUM_JOINTS
+from engine.skeleton import FEET, HANDS, JOINT_INDEX, NUM_JOINTS
 from engine.storyboard import Keypose, Storyboard
 from engine.synth.reach import heading_of, yaw_matrix
-
-LEFT, RIGHT = JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"]
 
 
 def previous_keypose(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
@@ -44,17 +43,19 @@ def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.
     """(points (22, 2), mask (22,), depth (22,)) of library pose `name` for the agent at `frame`,
     standing where the agent stands (see `placed_pose`). A pose that reaches for a person or an
     object (engine.poses.REACHES_FOR) reaches for the nearest one drawn then (`_aim`); any other,
-    and a carry of the agent's alone, faces the way the agent walks to this key (or from it, at
-    the first), else the way their keypose before it faces (the library's poses all face +Z: a
+    and a carry the contacts say the agent holds alone, faces the way the agent walks to this key
+    (or from it, at the first), else the way their keypose before it faces (the library's poses all face +Z: a
     giver on the left held the box out away from the taker, a carrier turned back on the box at
     every key; facing the way the hand over before it faced, a taker walked the box away
     backwards; facing the way they walk, two carriers of one box turned their backs on it)."""
     mask = np.ones(NUM_JOINTS, bool)
     points, _ = placed_pose(sb, agent, frame, library_pose_2d(name, sb.camera), mask)
-    feet = _on_floor(points, sb)
-    yaw, hands = _aim(sb, agent, frame, name, points, feet)
-    if yaw is None and (REACHES_FOR.get(name) is None or _holders(sb, agent, frame) == [agent]):
-        yaw = _walking_facing(sb, agent, frame, feet)
+    yaw = hands = None
+    if abs(sb.camera.basis()[2][1]) > LEVEL:   # a level camera does not say where on the floor anyone is
+        feet = _on_floor(points, sb)
+        yaw, hands = _aim(sb, agent, frame, name, points, feet)
+        if yaw is None and (REACHES_FOR.get(name) is None or _holders(sb, agent, frame) == [agent]):
+            yaw = _walking_facing(sb, agent, frame, feet)
     if yaw is None:
         yaw = _previous_facing(sb, agent, frame)
     if hands is not None:   # from the floor into the library pose's own place
@@ -75,12 +76,18 @@ def _aim(sb: Storyboard, agent: str, frame: int, name: str, points: np.ndarray, 
     agent holds then, with its hands on their end of it. (None, None) where there is none."""
     reaches = REACHES_FOR.get(name)
     if reaches == "resting object":
-        held = [g for g in (_resting_grips(sb, o, frame) for o in range(len(sb.objects))) if g is not None]
+        held = [g for g in (_resting_grips(sb, o, frame) for o in range(len(sb.objects))) if g is not None and len(g)]
         if not held:
             return None, None
         grips = min(held, key=lambda g: float(np.linalg.norm((g.mean(0) - feet)[[0, 2]])))
-        yaw = _across(sb, (grips.mean(0) - feet) @ sb.camera.basis()[0], name)
-        return yaw, _hands_on(grips, library_pose(name, yaw), feet, lifted=name == "lift")
+        across = _across(sb, (grips.mean(0) - feet) @ sb.camera.basis()[0], name)
+        # Square to the sketch, as people who lift something between them stand; turned to it where
+        # that does not reach it (a box drawn well nearer the camera); neither reaching, as the library has it.
+        for yaw in (across, float(heading_of(grips.mean(0) - feet) - heading_of(reach_of(name)))):
+            hands = _hands_on(grips, library_pose(name, yaw), feet, lifted=name == "lift")
+            if _reaches(name, yaw, hands, feet):
+                return yaw, hands
+        return across, None
     if reaches == "person":
         others = [key_at_or_before(sb, a.id, frame) for a in sb.agents if a.id != agent]
         others = [k for k in others if k is not None and k.mask[list(FEET)].all() and k.mask[0]]
@@ -94,7 +101,7 @@ def _aim(sb: Storyboard, agent: str, frame: int, name: str, points: np.ndarray, 
         nearest = min(places, key=lambda p: float(np.linalg.norm(p - points[0])))
         return _across(sb, nearest[0] - points[0][0], name), None
     others = [key_at_or_before(sb, a, frame) for a in _holders(sb, agent, frame) if a != agent] if reaches == "object" else []
-    others = [k for k in others if k is not None and k.mask[0]]
+    others = [k for k in others if k is not None and k.mask[0] and k.mask[list(FEET)].all()]
     if not others:
         return None, None
     # Carried with others: facing them across it, the hands on its grips at their end of it.
@@ -122,6 +129,7 @@ def _across(sb: Storyboard, towards: float, name: str) -> float:
 # Of an arm's length: a pick-up reaches its grips with the elbows bent (straight, at the stamp's
 # full reach, a person's arms shorter than the library's fell 9-15 cm short of a box's grips).
 PICK_UP_REACH = 0.9
+PUT_DOWN = 5      # frames from a hold's end at which a pick-up pose puts the object down
 HAND_GAP = {"hand over": 0.15, "shake hands": 0.05}   # m between two people's hands that meet
 FURTHER = 0.1     # m beyond its own reach that a pose's hands go to meet someone's
 
@@ -140,7 +148,14 @@ def _meeting_hands(name: str, yaw: float, feet: np.ndarray, other: np.ndarray) -
     meet = max(float(np.linalg.norm(line)) / 2 - HAND_GAP[name] / 2, 0.2)
     if meet <= out.max() + FURTHER:                                    # else too far apart to meet
         pose[placed] += (meet - out)[:, None] * ahead
-    return pose[[LEFT, RIGHT]]
+    return pose[list(HANDS)]
+
+
+def _reaches(name: str, yaw: float, hands: np.ndarray, feet: np.ndarray, within: float = 0.03) -> bool:
+    """Whether library pose `name` turned by `yaw` and standing at `feet` gets its wrists within
+    `within` m of the world targets `hands` (2, 3)."""
+    pose = library_pose(name, yaw, hands - _to_stand_at(library_pose(name, yaw), feet), PICK_UP_REACH)
+    return bool(np.linalg.norm(pose[list(HANDS)] + _to_stand_at(pose, feet) - hands, axis=-1).max() <= within)
 
 
 def _carried_between(spec, pose: np.ndarray, other: np.ndarray) -> np.ndarray:
@@ -151,7 +166,7 @@ def _carried_between(spec, pose: np.ndarray, other: np.ndarray) -> np.ndarray:
     line = (other - pose[0]) * (1.0, 0.0, 1.0)
     yaw = np.arctan2(-line[2], line[0])                    # the object's +x (its grips' ends) along the line
     base = (pose[0] + other) / 2 * (1.0, 0.0, 1.0)
-    base[1] = pose[[LEFT, RIGHT], 1].mean() - spec.anchors[:, 1].mean()
+    base[1] = pose[list(HANDS), 1].mean() - spec.anchors[:, 1].mean()
     return base + spec.anchors @ yaw_matrix(np.array(yaw)).T
 
 
@@ -160,7 +175,7 @@ def _hands_on(grips: np.ndarray, pose: np.ndarray, feet: np.ndarray, lifted: boo
     (22, 3) standing at `feet` (one carrier of two takes the end before them, not both ends), the
     left hand on the left one; at the pose's own wrist height where the object is `lifted` off
     the floor."""
-    wrists = pose[[LEFT, RIGHT]] + _to_stand_at(pose, feet)
+    wrists = pose[list(HANDS)] + _to_stand_at(pose, feet)
     left = pose[JOINT_INDEX["l_hip"]] - pose[JOINT_INDEX["r_hip"]]
     pairs = [(i, j) for i in range(len(grips)) for j in range(len(grips)) if i != j and (grips[i] - grips[j]) @ left >= 0]
 
@@ -177,18 +192,21 @@ def _hands_on(grips: np.ndarray, pose: np.ndarray, feet: np.ndarray, lifted: boo
 
 def _resting_grips(sb: Storyboard, o: int, frame: int) -> np.ndarray | None:
     """World grips (K, 3) of object o on the floor where a pick-up or put-down at `frame` finds it,
-    as finishing places it (engine.finishing.held.sketched_rest): drawn at `frame`; else, held
-    since before `frame`, where the sketch puts it down after; else where it rests since its last
-    hold; else where its first key draws it. Square to the sketch, as the contact tool shows its
-    grips (engine.grips.anchors_in_sketch). None without keys."""
+    as finishing places it (engine.finishing.held.sketched_rest): at the end of a hold (within
+    PUT_DOWN frames), where the sketch puts it down after; in someone's hands then, None (it is
+    not on the floor); else drawn at `frame`, or where it rests since its last hold, or where its
+    first key draws it. Square to the sketch, as the contact tool shows its grips
+    (engine.grips.anchors_in_sketch). None without keys."""
     obj = sb.objects[o].id
     holds = sorted((c.start, c.end) for c in sb.contacts if c.object == obj)
-    carrying = [end for start, end in holds if start < frame <= end]
-    if any(k.object == obj and k.frame == frame for k in sb.object_keys):
-        place = sketched_rest(sb, o, frame, frame)
-    elif carrying:   # a put-down: where it lands
-        after = max(carrying)
+    ending = [end for start, end in holds if start < frame and abs(end - frame) <= PUT_DOWN]
+    if ending:   # a put-down: where it lands
+        after = max(ending)
         place = sketched_rest(sb, o, after + 1, min((s for s, _ in holds if s > after), default=sb.length) - 1)
+    elif any(start < frame <= end for start, end in holds):
+        return None
+    elif any(k.object == obj and k.frame == frame for k in sb.object_keys):
+        place = sketched_rest(sb, o, frame, frame)
     else:
         place = sketched_rest(sb, o, 1 + max((end for _, end in holds if end < frame), default=-1), frame)
     if place is None:
@@ -272,5 +290,5 @@ def key_facing(doc, key: Keypose, points: np.ndarray | None = None) -> tuple[flo
     if not key.mask[TURNABLE].all():
         return None
     depth = known_depth(doc, key)
-    joints = lift(key.points if points is None else points, doc.storyboard.camera, depth)
-    return facing(joints), joints[list(FEET)].mean(0) * (1.0, 0.0, 1.0), depth is None
+    points = key.points if points is None else points
+    return facing(lift(points, doc.storyboard.camera, depth)), _on_floor(points, doc.storyboard, depth), depth is None

@@ -204,16 +204,18 @@ def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | No
     or None when nothing sketched falls there. An orthographic sketch gives a grounded object's
     place exactly: each object key's silhouette centre lies on the ray through the object's centre
     (half its height up), and an object path's end points are its base's projection at the
-    path's first and last frames. The cues in range are averaged (hand-drawn ones wobble)."""
+    path's first and last frames, where no key is (a path an artist starts in the middle of
+    the outline is no base's). The cues in range are averaged (hand-drawn ones wobble)."""
     obj = storyboard.objects[o]
     last = storyboard.length - 1 if last is None else last
     half = obj.spec.size[1] / 2
     cam = storyboard.camera
     places = [cam.unproject_to_height((k.outline.min(axis=0) + k.outline.max(axis=0)) / 2, half) - (0.0, half, 0.0)
               for k in storyboard.object_keys if k.object == obj.id and first <= k.frame <= last]
-    for path in (p for p in storyboard.object_paths if p.object == obj.id and not places):
-        places += [cam.unproject_to_height(path.points[i], 0.0)
-                   for i, frame in ((0, path.start), (-1, path.end)) if first <= frame <= last]
+    if not places:   # a path's ends only where no outline is drawn (an artist starts one mid-outline)
+        for path in (p for p in storyboard.object_paths if p.object == obj.id):
+            places += [cam.unproject_to_height(path.points[i], 0.0)
+                       for i, frame in ((0, path.start), (-1, path.end)) if first <= frame <= last]
     return np.mean(places, axis=0) if places else None
 
 
@@ -321,6 +323,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
         if start > 0:  # lifted from where it lay, the hands' gap to it closing over a few frames
             w = smoothstep(np.arange(end - start + 1) / max(config.lift_frames, 1))
             held_pos = held_pos + (1.0 - w[:, None]) * (pos[start - 1] - held_pos[0])
+            held_pos[:, 1] = np.maximum(held_pos[:, 1], config.rest_height)   # hands coming down onto it
             held_yaw = held_yaw + (1.0 - w) * wrap_angle(yaw[start - 1] - held_yaw[0])
         pos[start:end + 1], yaw[start:end + 1] = held_pos, held_yaw
         # Released, it drops under gravity to the ground and rests there until the next hold (or

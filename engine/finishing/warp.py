@@ -25,6 +25,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..camera import StoryboardCamera
+from ..facing import towards_camera
 from ..skeleton import ELBOWS, FEET, HANDS, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
@@ -164,7 +165,7 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
                         config.ground_weight * back[1] * eye[standing]])
     kept = np.zeros(len(child))
     if known is not None:   # the key's depth differences along the ray, instead of the generated ones
-        along = (known - (origin - origin[list(FEET)].mean(0)) @ _towards(back)) / np.hypot(back[0], back[2])
+        along = (known - (origin - origin[list(FEET)].mean(0)) @ towards_camera(camera)) / np.hypot(back[0], back[2])
         kept = (along - depth)[sketched][child] - (along - depth)[sketched][parent]
     b = np.concatenate([np.zeros(len(sketched)), kept,
                         config.ground_weight * (config.foot_height - origin[sketched[standing], 1]
@@ -187,11 +188,6 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     if abs(back[1]) > LEVEL:   # the lower foot exactly on the ground: a slide along the ray keeps the sketch
         out += grounding_height(out, config.foot_height) / back[1] * back
     return out
-
-
-def _towards(back: np.ndarray) -> np.ndarray:
-    """The horizontal unit direction (3,) towards the camera (Keypose.depth's axis)."""
-    return np.array([back[0], 0.0, back[2]]) / max(np.hypot(back[0], back[2]), 1e-9)
 
 
 def _sketched_ancestor(joint: int, mask: np.ndarray) -> int:

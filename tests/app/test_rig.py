@@ -348,6 +348,7 @@ def test_a_stamped_put_down_reaches_for_the_box_where_it_is_put_down(qtbot, make
     assert max(np.min(np.linalg.norm(landed - w, axis=1)) for w in hands) < 0.04   # 2.7 cm: at the arms' reach
 
 
+@pytest.mark.slow
 def test_a_lift_posed_with_the_stamps_holds_the_box_from_the_first_frame_of_its_hold(qtbot, make_window):
     """The shipped model and finishing on a solo lift posed as an artist poses one: a box on the
     floor, a crouch-reach beside it at the hold's first frame, a lift, a carry, both hands joined
@@ -504,3 +505,37 @@ def test_copy_a_pose_and_paste_it_on_the_other_agent_where_it_stands(qtbot, make
     doc.set_frame(FRAME + 20)                                                   # a frame B has no key at
     qtbot.keyClick(canvas, Qt.Key_V, Qt.ControlModifier)
     assert np.allclose(cmd.find_keypose(doc.storyboard, "B", FRAME + 20).points, pasted)
+
+
+def _box_scene(camera=None, anchors=None):
+    """A stands beside a box lying on the floor (no window: the stamp is a pure function)."""
+    from engine.objects import ObjectSpec
+    from engine.poses import standing_pose_2d
+    from engine.storyboard import Agent, Keypose, ObjectKey, SceneObject, Storyboard
+    sb = Storyboard(agents=[Agent("A"), Agent("B")], **({"camera": camera} if camera else {}))
+    spec = ObjectSpec("box", (0.4, 0.3, 0.3))
+    if anchors is not None:
+        spec.anchors = anchors
+    sb.objects = [SceneObject("box1", spec)]
+    figure = standing_pose_2d(sb.camera) + (-0.3, 0.0)
+    floor = figure[:, 1].min()
+    sb.object_keys = [ObjectKey("box1", 0, np.array([[0.0, floor], [0.4, floor], [0.4, floor + 0.3], [0.0, floor + 0.3]]))]
+    sb.keyposes = [Keypose("A", 40, figure, np.ones(len(figure), bool))]
+    return sb
+
+
+@pytest.mark.parametrize("case", ["no grips", "level camera", "in someone's hands"])
+def test_a_pick_up_stamp_with_nothing_to_pick_up_is_the_librarys_pose(case):
+    """An object without grips crashed the stamp; a level camera, which says nowhere on the
+    floor, gave NaN; a box in someone else's hands then was reached for where it is put down."""
+    from engine.camera import StoryboardCamera
+    from engine.storyboard import Contact
+    from app.poses import stamped_pose
+    sb = _box_scene(camera=StoryboardCamera(elevation_deg=0.0) if case == "level camera" else None,
+                    anchors=np.zeros((0, 3)) if case == "no grips" else None)
+    if case == "in someone's hands":
+        sb.contacts = [Contact("B", hand, 20, 90, object="box1", anchor=i) for i, hand in enumerate(("left", "right"))]
+    points, mask, depth = stamped_pose(sb, "A", 40, "crouch-reach")
+    assert np.isfinite(points).all() and np.isfinite(depth).all() and mask.all()
+    lying = stamped_pose(_box_scene(), "A", 40, "crouch-reach")[0]
+    assert not np.allclose(points[[J["l_wrist"], J["r_wrist"]]], lying[[J["l_wrist"], J["r_wrist"]]], atol=0.02)
