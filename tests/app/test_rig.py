@@ -236,6 +236,15 @@ def test_a_library_pose_is_stamped_where_the_figure_stands(qtbot, make_window):
     assert stamped.points[J["r_wrist"], 1] > stamped.points[J["head"], 1]          # the hand is up
 
 
+def place_people(qtbot, window, places: dict) -> None:
+    """Keyposes at FRAME: each agent clicked where `places` puts them on the sketch (u, 0)."""
+    window.doc.set_frame(FRAME)
+    window.doc.set_tool("keypose")
+    for agent, u in places.items():
+        window.doc.select(agent=agent)
+        qtbot.mouseClick(window.canvas, Qt.LeftButton, pos=px(window.canvas, (u, 0.0)))
+
+
 def test_a_stamped_hand_over_reaches_towards_the_other_person(qtbot, make_window):
     """The library's poses face +Z, their hands out to the left on the sketch: a giver on the left
     held the box out away from the taker. A pose that reaches for someone reaches their way; a
@@ -243,12 +252,8 @@ def test_a_stamped_hand_over_reaches_towards_the_other_person(qtbot, make_window
     from engine.facing import depth_of
     from engine.poses import library_pose
     window = make_window()
-    doc, canvas = window.doc, window.canvas
-    doc.set_frame(FRAME)
-    doc.set_tool("keypose")
-    for agent, u in (("A", -0.6), ("B", 0.6)):
-        doc.select(agent=agent)
-        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+    doc = window.doc
+    place_people(qtbot, window, {"A": -0.6, "B": 0.6})
     hands = [J["l_wrist"], J["r_wrist"]]
     for agent, side in (("A", 1), ("B", -1)):
         doc.select(agent=agent)
@@ -427,12 +432,8 @@ def test_stamped_handshakes_meet_halfway(qtbot, make_window):
     apart); a hand over's hands stop short of the partner's instead of passing them."""
     from engine.facing import lift
     window = make_window()
-    doc, canvas = window.doc, window.canvas
-    doc.set_frame(FRAME)
-    doc.set_tool("keypose")
-    for agent, u in (("A", -0.35), ("B", 0.35)):
-        doc.select(agent=agent)
-        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+    doc = window.doc
+    place_people(qtbot, window, {"A": -0.35, "B": 0.35})
 
     def stamped(name):
         for agent in "AB":
