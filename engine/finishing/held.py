@@ -373,7 +373,10 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
     the shoulder. The move eases in and out over `blend_frames` around each hold and is zero on
     the person's sketched keyframes, where the sketch says where they stand; away from them it
     grows by at most a metre per `frames_per_metre` frames (a hold drawn right after a key far
-    from the object lunged a carrier 76 cm to it and back in a third of a second).
+    from the object lunged a carrier 76 cm to it and back in a third of a second). A holder
+    whose body is inside an object that others hold too steps back out of it the same way: two
+    carriers facing each other across a box, drawn closer than the box is deep, had it 5 cm
+    inside a chest, and pushes from the two of them on the box cancel (_clear_of_holders).
     joints (N, H, 22, 3), obj_pose (N, O, 7) decoded -> joints (N, H, 22, 3)."""
     joints = np.asarray(joints, float).copy()
     n, h = joints.shape[:2]
@@ -390,7 +393,12 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
             room[:, a] = np.min(np.abs(frames[:, None] - keys[None]), axis=1) / config.frames_per_metre
     # The object where the hands put it now; refitting it to moved hands would carry it away
     # with the person stepping towards it.
-    anchors = object_anchors(hold_object(joints, obj_pose, storyboard, config), storyboard).reshape(n, -1, 3)
+    held = hold_object(joints, obj_pose, storyboard, config)
+    anchors = object_anchors(held, storyboard).reshape(n, -1, 3)
+    holders: dict[tuple[int, int], np.ndarray] = {}             # (object, person) -> span weight (N,)
+    for c, a, _ in grips:
+        key = (storyboard.object_index(c.object), a)
+        holders[key] = np.maximum(holders.get(key, 0.0), span_weight(n, c.start, c.end, config.blend_frames))
     arms = arm_lengths(joints)                                   # whole-body steps keep them
     start, moved = joints, np.zeros((n, h, 3))
     for _ in range(config.reach_passes):
@@ -407,9 +415,26 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
             w = span_weight(n, c.start, c.end, config.blend_frames) * (distance > allowed)
             need[:, a] += w[:, None] * short
             weight[:, a] += w
+        for (o, a), w in holders.items():
+            # The box is fitted to all its holders' hands: of a step back, the others' share parts them.
+            others = sum(v for (p, b), v in holders.items() if p == o and b != a)
+            share = np.where(others > 0.5, (w + others) / np.maximum(others, 1e-9), 0.0)
+            out = _out_of_object(joints[:, a], held[:, o], storyboard.objects[o].spec) * share[:, None]
+            w = w * np.any(out != 0.0, axis=-1)
+            need[:, a] += w[:, None] * out
+            weight[:, a] += w
         step = need / np.maximum(weight, 1.0)[..., None]          # the short hands' shortfalls averaged
         moved += gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
         length = np.maximum(np.linalg.norm(moved, axis=-1), 1e-9)
         moved *= np.minimum(1.0, room / length)[..., None]
         joints = start + moved[:, :, None]
     return joints
+
+
+def _out_of_object(joints: np.ndarray, pose: np.ndarray, spec: ObjectSpec) -> np.ndarray:
+    """The horizontal move (N, 3) that takes a body (joints (N, 22, 3); its arms aside) out of an
+    object at pose (N, 7) as far as its deepest sphere is in, away from the object's centre."""
+    points, radii = _body_spheres(joints[:, None])
+    depth = np.max(spec.penetration_local(world_to_local(points[:, 0], pose), radii), axis=-1)   # (N,)
+    away = normalize((joints[:, 0] - pose[:, :3]) * (1.0, 0.0, 1.0))
+    return np.maximum(depth, 0.0)[:, None] * away

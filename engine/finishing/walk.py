@@ -94,17 +94,39 @@ def _walk(goals: list[np.ndarray], pose: np.ndarray, a: int, b: int, config: Fee
 def _stepping(pelvis: np.ndarray, travel: np.ndarray, start: list[np.ndarray], end: list[np.ndarray],
               first: int, steps: int, config: FeetConfig) -> list[np.ndarray]:
     """Feet paths (two (M, 3)) taking `steps` steps in turn, `first` foot first, as the pelvis
-    (M, 3) travels (travel (M,), m from its first frame): each step's window is an equal share of
-    the travel; a foot lands beside the pelvis half a window past the window's end, and the last
-    step of each foot on its end plant."""
-    total = travel[-1]
-    bounds = np.linspace(0.0, total, steps + 1)
-    offset_start, offset_end = [s - pelvis[0] for s in start], [e - pelvis[-1] for e in end]
+    (M, 3) travels (travel (M,), m from its first frame). Each step's window of the travel is
+    its share of the distance the feet cover, so that every step moves as fast against the
+    pelvis (equal windows gave a foot's one long step to the end plant a third of the time: a
+    1.3 m step in 3 frames); a foot lands beside the pelvis half a window past the window's
+    end, and the last step of each foot on its end plant."""
+    bounds = np.linspace(0.0, travel[-1], steps + 1)
+    landings = _landings(pelvis, travel, bounds, start, end, first, config)
+    covered = np.array([np.linalg.norm((dst - src)[[0, 2]]) for _, src, dst in landings])
+    if covered.sum() > 1e-6:
+        bounds = travel[-1] * np.concatenate([[0.0], np.cumsum(covered)]) / covered.sum()
+        landings = _landings(pelvis, travel, bounds, start, end, first, config)
     feet = [np.repeat(s[None], len(pelvis), axis=0) for s in start]
+    for j, (foot, src, dst) in enumerate(landings):
+        width = max(bounds[j + 1] - bounds[j], 1e-9)
+        tau = np.clip((travel - bounds[j]) / width, 0.0, 1.0)
+        ease = smootherstep((tau - 0.1) / 0.8)[:, None]         # it lifts before it travels
+        path = src + ease * (dst - src)
+        path[:, 1] += (config.step_height - config.foot_height) * np.sin(np.pi * tau)
+        moving = travel >= bounds[j]
+        feet[foot][moving] = path[moving]
+    return feet
+
+
+def _landings(pelvis: np.ndarray, travel: np.ndarray, bounds: np.ndarray, start: list[np.ndarray],
+              end: list[np.ndarray], first: int, config: FeetConfig) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """(foot, from, to) of each step whose window of the travel is bounds[j]..bounds[j + 1]."""
+    total = travel[-1]
+    offset_start, offset_end = [s - pelvis[0] for s in start], [e - pelvis[-1] for e in end]
     where = [s.copy() for s in start]
-    for j in range(steps):
+    out = []
+    for j in range(len(bounds) - 1):
         foot = first if j % 2 == 0 else 1 - first
-        if j >= steps - 2:
+        if j >= len(bounds) - 3:
             dst = end[foot]
         else:
             at = 0.5 * (bounds[j + 1] + bounds[j + 2])
@@ -112,11 +134,6 @@ def _stepping(pelvis: np.ndarray, travel: np.ndarray, start: list[np.ndarray], e
             dst = np.array([np.interp(at, travel, pelvis[:, k]) for k in range(3)])
             dst += (1 - w) * offset_start[foot] + w * offset_end[foot]
             dst[1] = config.foot_height
-        tau = np.clip((travel - bounds[j]) / (bounds[j + 1] - bounds[j]), 0.0, 1.0)
-        ease = smootherstep((tau - 0.1) / 0.8)[:, None]         # it lifts before it travels
-        path = where[foot] + ease * (dst - where[foot])
-        path[:, 1] += (config.step_height - config.foot_height) * np.sin(np.pi * tau)
-        moving = travel >= bounds[j]
-        feet[foot][moving] = path[moving]
+        out.append((foot, where[foot], dst))
         where[foot] = dst
-    return feet
+    return out

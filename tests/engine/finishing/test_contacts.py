@@ -417,3 +417,30 @@ def test_a_resting_object_is_where_its_outline_stands_not_where_its_path_starts(
     np.testing.assert_allclose(sketched_rest(outlined, 0, 0, 5), base, atol=0.03)
     unoutlined = replace(sb, object_keys=[k for k in sb.object_keys if k.frame > 5])
     np.testing.assert_allclose(sketched_rest(unoutlined, 0, 0, 5), base, atol=0.03)
+
+
+def test_a_holder_inside_the_object_steps_back_out_of_it_but_not_off_a_keyframe():
+    """Carriers drawn closer than the box is deep: B 40 cm nearer A all along, the box (fitted to
+    the mean of the wrists) inside B's body. B steps back, away from its keys, until its body is
+    within the bench's 2 cm (the steps are smoothed); pushes on the box itself from the two facing
+    carriers cancel."""
+    clip = synthesize("carry_together", 3, fps=20)
+    sb = sketchify(clip, 4, 0.0, 3)
+    joints = clip.joints.astype(float).copy()
+    towards_a = joints[:, 0, 0] - joints[:, 1, 0]
+    joints[:, 1] += 0.4 * (towards_a * [1.0, 0.0, 1.0] / np.linalg.norm(towards_a, axis=-1, keepdims=True))[:, None]
+    config, spec = ContactConfig(), sb.objects[0].spec
+
+    def inside(j):   # (N,) how deep B's body (arms aside) is in the box as the hands hold it
+        pose = hold_object(j, clip.obj_pose, sb, config)[:, 0]
+        points, radii = body_points(j[:, 1])
+        return np.max(spec.penetration_local(world_to_local(points[:, BODY_SPHERES], pose), radii[BODY_SPHERES]), -1)
+
+    out = step_within_reach(joints, clip.obj_pose, sb, config)
+    keys_b = np.array([k.frame for k in sb.keyposes if k.agent == "B"])
+    held = [c for c in sb.contacts if c.agent == "B"]
+    far = np.array([any(c.start + 10 <= f <= c.end - 10 for c in held) and np.abs(f - keys_b).min() > 15
+                    for f in range(len(joints))])
+    assert far.any() and inside(joints)[far].max() > 0.05
+    assert inside(out)[far].max() < 0.02                                 # unmoved: 7.6 cm
+    np.testing.assert_allclose(out[keys_b, 1], joints[keys_b, 1])        # the sketch says where B stands

@@ -18,7 +18,7 @@ def hopping(distance: float = 0.6):
     goals = []
     for foot in FEET:
         goal = np.repeat(pose[:1, foot], N, axis=0)
-        goal[31:] = pose[-1, foot]
+        goal[30:] = pose[-1, foot]
         share = np.linspace(0, 1, 21)[1:-1, None]
         goal[11:30] = (1 - share) * goal[10] + share * goal[31]
         goal[11:30, 1] = 0.08
@@ -47,3 +47,14 @@ def test_a_hop_is_left_where_a_walk_cannot_go_smoothly_or_a_key_is():
         walked = walk_through_flights(goals, pose_used, keys, config)
         for before, after in zip(goals, walked):
             np.testing.assert_array_equal(after, before)
+
+
+def test_every_step_of_a_walk_moves_as_fast_against_the_body():
+    """Three steps: one foot steps once, all the way to its end plant, the other twice. Each step
+    takes its share of the body's travel by the distance it covers, so neither foot rushes."""
+    pose, goals = hopping(2.0)
+    walked = walk_through_flights(goals, pose, [], FeetConfig(walk_pop=1.0, plant_reach=10.0))   # taken
+    fastest = [np.linalg.norm(np.diff(w[:, [0, 2]], axis=0), axis=-1).max() for w in walked]
+    body = np.linalg.norm(np.diff(pose[:, 0, [0, 2]], axis=0), axis=-1).max()
+    assert max(fastest) < 1.3 * min(fastest)
+    assert max(fastest) < 7.0 * body            # equal windows: 8.9x, the end step 1.9x the other's
