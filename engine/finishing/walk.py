@@ -109,9 +109,10 @@ def _stepping(pelvis: np.ndarray, travel: np.ndarray, start: list[np.ndarray], e
     for j, (foot, src, dst) in enumerate(landings):
         width = max(bounds[j + 1] - bounds[j], 1e-9)
         tau = np.clip((travel - bounds[j]) / width, 0.0, 1.0)
-        ease = smootherstep((tau - 0.1) / 0.8)[:, None]         # it lifts before it travels
-        path = src + ease * (dst - src)
-        path[:, 1] += (config.step_height - config.foot_height) * np.sin(np.pi * tau)
+        # Travelling over the whole window (not its middle 80%) jolts the foot 0.64 times as much;
+        # the square root of a sine lifts it off the floor fast, so that it does not slide.
+        path = src + smootherstep(tau)[:, None] * (dst - src)
+        path[:, 1] += (config.step_height - config.foot_height) * np.sqrt(np.sin(np.pi * tau))
         moving = travel >= bounds[j]
         feet[foot][moving] = path[moving]
     return feet
