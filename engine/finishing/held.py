@@ -399,6 +399,11 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
     for c, a, _ in grips:
         key = (storyboard.object_index(c.object), a)
         holders[key] = np.maximum(holders.get(key, 0.0), span_weight(n, c.start, c.end, config.blend_frames))
+    # The object is fitted to all its holders' hands: of a holder's step back, the others' share parts them.
+    shares = {}
+    for (o, a), w in holders.items():
+        others = sum(v for (p, b), v in holders.items() if p == o and b != a)
+        shares[o, a] = np.where(others > 0.5, (w + others) / np.maximum(others, 1e-9), 0.0)
     arms = arm_lengths(joints)                                   # whole-body steps keep them
     start, moved = joints, np.zeros((n, h, 3))
     for _ in range(config.reach_passes):
@@ -416,10 +421,7 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
             need[:, a] += w[:, None] * short
             weight[:, a] += w
         for (o, a), w in holders.items():
-            # The box is fitted to all its holders' hands: of a step back, the others' share parts them.
-            others = sum(v for (p, b), v in holders.items() if p == o and b != a)
-            share = np.where(others > 0.5, (w + others) / np.maximum(others, 1e-9), 0.0)
-            out = _out_of_object(joints[:, a], held[:, o], storyboard.objects[o].spec) * share[:, None]
+            out = _out_of_object(joints[:, a], held[:, o], storyboard.objects[o].spec) * shares[o, a][:, None]
             w = w * np.any(out != 0.0, axis=-1)
             need[:, a] += w[:, None] * out
             weight[:, a] += w
