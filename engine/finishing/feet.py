@@ -27,7 +27,7 @@ from ..geometry.rotations import normalize
 from ..skeleton import ANKLES, FEET, HIPS, KNEES
 from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
-from .blend import ease_frames, smooth_correction
+from .blend import HELD_WEIGHT, ease_frames, smooth_correction, smooth_path, spike
 from .keys import closeness_to_keys
 from .walk import walk_through_flights
 
@@ -37,7 +37,7 @@ from .walk import walk_through_flights
 class FeetConfig:
     """Thresholds of the feet finishing; durations in frames at TUNED_FPS."""
     DURATIONS: ClassVar[tuple[str, ...]] = ("speed_sigma", "min_stance_frames", "blend_frames", "step_frames",
-                                            "max_step_frames", "correction_frames", "settle_sigma", "crouch_window",
+                                            "max_step_frames", "swing_frames", "correction_frames", "settle_sigma", "crouch_window",
                                             "crouch_sigma")
     # Foot joint height when standing (the rest skeleton's; EnergyConfig.foot_height).
     foot_height: float = 0.02        # m
@@ -55,6 +55,8 @@ class FeetConfig:
     # A gliding foot is re-planted once it has drifted this far, after a step of step_frames.
     max_drift: float = 0.3           # m
     step_frames: int = 4
+    swing_frames: float = 2.0        # time scale over which a swing's pace along its path changes ...
+    swing_pop: float = 0.045         # m; ... where held still at its plants it jolts more than this
     correction_frames: float = 2.5   # time scale over which a correction of the feet changes (blend.py)
     min_step_m: float = 0.05          # plants closer than this need no room to step between them
     step_height: float = 0.08        # m; peak of a made-up step (the synthesizer's swing lift)
@@ -207,6 +209,41 @@ def _free_step(busy: np.ndarray | None, preferred: int, first: int, last: int, f
     return next((e for e in order if busy is None or not busy[e:e + frames].any()), default)
 
 
+STILL_STEP = 1e-3   # m a frame; a foot moving less to and from a frame stands there
+
+
+def _retimed_swings(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetConfig,
+                    keys: Sequence[int] = ()) -> np.ndarray:
+    """The foot's path (N, 3) retimed along itself where it keeps its own path off its plants
+    (not where _foot_goal makes up a step), so that it leaves and lands slowly: its progress
+    along the path smoothed over time (config.swing_frames), still at the plants and where it is
+    at the key frames `keys` and wherever it stands still, where it jolts (spikes) more than config.swing_pop held still at them. Released at swing speed, a foot jolted 6-7 cm off its plant (20
+    artist-style storyboards: largest pop within 5 cm 12 -> 14). -> (N, 3)."""
+    out = foot.copy()
+    n, pad = len(foot), 3
+    stretches = [(0, intervals[0][0], False, True)] if intervals else []   # (first, last frame, still at them)
+    stretches += [(a - 1, b, True, True) for (_, a), (b, _) in zip(intervals[:-1], intervals[1:])
+                  if b - a > config.max_step_frames or _swings(foot, a, b, config)]
+    stretches += [(intervals[-1][1] - 1, n - 1, True, False)] if intervals else []
+    for first, last, still_first, still_last in stretches:
+        span = np.arange(max(first, 0), min(last, n - 1) + 1)
+        held = np.concatenate([foot[span[:1]].repeat(2 * still_first, 0), foot[span], foot[span[-1:]].repeat(2 * still_last, 0)])
+        if len(span) < 3 or spike(held).max() <= config.swing_pop:
+            continue   # it leaves and lands smoothly already
+        way = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(foot[span], axis=0), axis=-1))])
+        before, after = pad * still_first, pad * still_last
+        values = np.concatenate([np.zeros(before), way, np.full(after, way[-1])])
+        weight = np.ones(len(values))
+        weight[:before + still_first] = weight[len(values) - after - still_last:] = HELD_WEIGHT
+        steps = np.diff(way)
+        still = np.concatenate([[False], (steps[:-1] < STILL_STEP) & (steps[1:] < STILL_STEP), [False]])
+        weight[before + np.flatnonzero(still | np.isin(span, keys))] = HELD_WEIGHT   # nor where it stands
+        progress = smooth_path(values[:, None], weight, config.swing_frames ** 4)[before:before + len(span), 0]
+        at = np.interp(np.clip(np.maximum.accumulate(progress), 0.0, way[-1]), way, span)
+        out[span] = np.stack([np.interp(at, span, foot[span, k]) for k in range(3)], -1)
+    return out
+
+
 def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetConfig,
                keys: Sequence[int] = ()) -> np.ndarray:
     """Where one foot (N, 3) should be, given its stances -> (N, 3). A stance holding a key
@@ -220,13 +257,14 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
         on[start:stop] = True
         target[start:stop, [0, 2]] = _plant_spot(foot, start, stop, keys)
         target[start:stop, 1] = np.where(flat[start:stop], config.foot_height, foot[start:stop, 1])
-    correction = target - foot                                                 # (N, 3), 0 off stance
-    # Before the first stance, after the last and across long gaps the foot keeps its own path:
-    # the correction fades out over blend_frames.
+    own = _retimed_swings(foot, intervals, config, keys)
+    correction = target - own                                                  # (N, 3), 0 off stance
+    # Before the first stance, after the last and across long gaps the foot keeps its own path
+    # (retimed): the correction fades out over blend_frames.
     frames = np.arange(n)
     carried = np.stack([np.interp(frames, frames[on], correction[on, k]) for k in range(3)], -1)
     ramp = 1.0 - distance_transform_edt(~on) / (config.blend_frames + 1)
-    goal = foot + smoothstep(ramp)[:, None] * carried
+    goal = own + smoothstep(ramp)[:, None] * carried
     stepped = np.zeros(n, bool)                                               # made-up steps
     # A short gap is a step from one plant to the next, eased so the foot leaves and lands
     # slowly. A swing keeps its own shape, shifted from the first plant's correction to the
@@ -243,14 +281,14 @@ def _foot_goal(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetC
             goal[a:b, 1] = config.foot_height + lift * np.sqrt(np.sin(np.pi * s))
             stepped[a:b] = True
         else:
-            goal[a:b] = foot[a:b] + correction[a - 1] + ease * (correction[b] - correction[a - 1])
+            goal[a:b] = own[a:b] + correction[a - 1] + ease * (correction[b] - correction[a - 1])
     # Plants and keys stay exact; everywhere else the correction changes smoothly (a foot that
     # left a plant at full speed, or went back to its own path in three frames, popped the knee).
     # Made-up steps are smooth already and stay exact: flattened, they slid along the floor, and
     # smoothing their correction (not the step) brought back the glide's jolts.
     held = on | stepped
     held[[k for k in keys if 0 <= k < n]] = True
-    smooth = foot + smooth_correction(goal - foot, held, config.correction_frames ** 4)
+    smooth = own + smooth_correction(goal - own, held, config.correction_frames ** 4)
     smooth[:, 1] = np.maximum(smooth[:, 1], np.minimum(goal[:, 1], config.foot_height))   # not into the floor
     return smooth
 
