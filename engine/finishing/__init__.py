@@ -83,11 +83,11 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
     return forward_kinematics(root, rotations, offsets), offsets
 
 
-def _last_limb_pass(joints: np.ndarray, config: LimbConfig) -> np.ndarray:
+def _last_limb_pass(joints: np.ndarray, config: LimbConfig, objects: tuple | None) -> np.ndarray:
     """Knees and elbows smoothed once more (joints (N, H, 22, 3)): the steadying's IK and re-pinned
     hands and feet can leave one popping between its ends (the worst pop of 40 artist-style
     storyboards, 18.7 cm, was a knee). Kept for each person whose largest pop it does not raise."""
-    again = steady_limbs(joints, config)
+    again = steady_limbs(joints, config, objects)
     out = joints.copy()
     for h in range(joints.shape[1]):
         if frame_pops(again[:, h]).max() <= frame_pops(joints[:, h]).max():
@@ -132,7 +132,8 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
     obj_pose = kw["obj_pose"].astype(float) if config.contacts and "obj_pose" in kw else None
     if obj_pose is not None:
         joints = clear_hands(joints, obj_pose, storyboard, config.contact.clear_frames)
-    joints = steady_body(steady_limbs(joints, config.limbs), offsets, storyboard, config.steady)
+    objects = None if obj_pose is None else (obj_pose, [o.spec for o in storyboard.objects])
+    joints = steady_body(steady_limbs(joints, config.limbs, objects), offsets, storyboard, config.steady)
     if obj_pose is not None:
         # The steadying smooths the pops that a push out of an object makes, and so can put the
         # hand back in (a wrist 14 cm deep before its hold): pushed out again, steadied once more.
@@ -140,7 +141,7 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         pushed = np.flatnonzero(np.any(cleared != joints, axis=(0, 2, 3)))
         if len(pushed):
             joints = steady_body(cleared, offsets, storyboard, config.steady, pushed)
-    joints = _last_limb_pass(joints, config.last_limbs)
+    joints = _last_limb_pass(joints, config.last_limbs, objects)
     rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
                    bone_offsets=offsets.astype(np.float32), **kw)

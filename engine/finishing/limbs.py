@@ -18,9 +18,12 @@ import numpy as np
 from scipy.ndimage import label, maximum_filter1d
 
 from ..geometry.rotations import matrix_to_6d, normalize, sixd_to_matrix
-from ..skeleton import JOINT_INDEX, forward_kinematics
+from ..objects import ObjectSpec
+from ..skeleton import ELBOWS, JOINT_INDEX, forward_kinematics
 from .blend import smooth_path, spike
+from .swivel import arm_penetration
 
+DEEPER = 0.002   # m; an elbow the smoothing takes further into an object than this stays
 LIMBS = tuple(tuple(JOINT_INDEX[f"{side}_{joint}"] for joint in chain)
               for chain in (("hip", "knee", "ankle"), ("shoulder", "elbow", "wrist")) for side in "lr")
 
@@ -52,9 +55,13 @@ def on_circle(root: np.ndarray, end: np.ndarray, upper: np.ndarray, lower: np.nd
     return centre + radius[..., None] * normalize(off)
 
 
-def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig()) -> np.ndarray:
+def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig(),
+                 objects: tuple[np.ndarray, list[ObjectSpec]] | None = None) -> np.ndarray:
     """joints (N, H, 22, 3) -> (N, H, 22, 3) with knees and elbows that do not pop; every other
-    joint and every bone length unchanged."""
+    joint and every bone length unchanged. With `objects` (their poses (N, O, 7), their specs),
+    an elbow is not smoothed into them: a frame whose arm the smoothed elbow would take deeper
+    into an object keeps its elbow (smoothing pushed forearms beside side grips 2-3 cm into boxes
+    that the elbows' swivel had cleared)."""
     out = np.array(joints, float)
     if len(out) < 3:
         return out
@@ -72,7 +79,23 @@ def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig()) -> np.nd
             goal = path.copy()
             for h in np.flatnonzero(popping.any(axis=0)):
                 goal[:, h] = smooth_path(path[:, h], np.where(popping[:, h], config.popping_weight, 1.0), stiffness)
-            out[:, :, mid] = on_circle(out[:, :, root], out[:, :, end], upper, lower, goal)
+            moved = on_circle(out[:, :, root], out[:, :, end], upper, lower, goal)
+            if objects is not None and mid in ELBOWS:
+                moved = _not_deeper(out[:, :, root], out[:, :, mid], moved, out[:, :, end], *objects)
+            out[:, :, mid] = moved
+    return out
+
+
+def _not_deeper(shoulder: np.ndarray, elbow: np.ndarray, moved: np.ndarray, wrist: np.ndarray,
+                obj_pose: np.ndarray, specs: list[ObjectSpec]) -> np.ndarray:
+    """The moved elbows (N, H, 3), but the old ones (N, H, 3) where moving them takes the arm
+    (shoulder, wrist (N, H, 3)) deeper into the objects (obj_pose (N, O, 7))."""
+    out = moved.copy()
+    for h in range(elbow.shape[1]):
+        ends = shoulder[:, h, None], wrist[:, h, None]
+        depth = arm_penetration(ends[0], np.stack([elbow[:, h], moved[:, h]], 1), ends[1], obj_pose, specs)   # (N, 2)
+        deeper = depth[:, 1] > depth[:, 0] + DEEPER
+        out[deeper, h] = elbow[deeper, h]
     return out
 
 

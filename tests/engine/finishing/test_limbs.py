@@ -8,7 +8,9 @@ from engine.bench.animator import pop
 from engine.finishing import finish
 from engine.finishing.blend import smooth_correction, smooth_path
 from engine.finishing.limbs import LIMBS, LimbConfig, on_circle, steady_limbs, steady_rotations
+from engine.finishing.swivel import arm_penetration
 from engine.geometry.rotations import axis_angle_to_matrix
+from engine.objects import ObjectSpec
 from engine.skeleton import JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
 from engine.synth import synthesize
 
@@ -68,6 +70,24 @@ def test_a_flipped_knee_is_smoothed_and_the_rest_kept():
     assert np.abs(np.delete(out - popped, MIDDLE, axis=2)).max() == 0.0          # only knees and elbows move
     np.testing.assert_allclose(bone_lengths(out), bone_lengths(popped), atol=1e-9)
 
+
+
+def test_an_elbow_is_not_smoothed_into_an_object():
+    """A popping elbow whose smoothed place is inside a box keeps its place where that would take
+    the arm deeper in; without the box it is smoothed back."""
+    clean = synthesize("handoff", 0, fps=20).joints.astype(float)
+    popped = swivelled_for_one_frame(clean, 40, 2)                        # the left elbow
+    elbow = JOINT_INDEX["l_elbow"]
+    box = ObjectSpec("box", (0.12, 0.12, 0.12))
+    pose = np.tile([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], (len(clean), 1, 1))
+    pose[:, 0, :3] = clean[40, 0, elbow] - [0.0, 0.06, 0.0]              # around where it was
+    def depth(joints):
+        s, e, w = (joints[:, 0, JOINT_INDEX[f"l_{j}"]][:, None] for j in ("shoulder", "elbow", "wrist"))
+        return arm_penetration(s, e, w, pose, [box])[:, 0]
+    assert depth(steady_limbs(popped))[40] > 0.03                         # smoothed back into the box
+    kept = steady_limbs(popped, objects=(pose, [box]))
+    assert (depth(kept) <= depth(popped) + 0.002).all()
+    np.testing.assert_allclose(bone_lengths(kept), bone_lengths(popped), atol=1e-9)
 
 def test_motion_that_does_not_pop_is_left_exactly():
     clean = synthesize("carry_together", 1, fps=20).joints.astype(float)
