@@ -21,8 +21,9 @@ that keep each person's bone lengths:
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
    bone lengths (limbs.py);
 6. the whole body smoothed where it still pops, what the stages above made exact held
-   (steady.py); hands that this puts back into an object pushed out again and smoothed once more,
-   and knees and elbows that it leaves popping between their ends smoothed once more (limbs.py).
+   (steady.py); hands that this puts back into an object pushed out again and smoothed once more
+   with the pushed joints held, and knees and elbows that it leaves popping between their ends
+   smoothed once more (limbs.py), never deeper into an object.
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
 """
 from __future__ import annotations
@@ -136,11 +137,13 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
     joints = steady_body(steady_limbs(joints, config.limbs, objects), offsets, storyboard, config.steady)
     if obj_pose is not None:
         # The steadying smooths the pops that a push out of an object makes, and so can put the
-        # hand back in (a wrist 14 cm deep before its hold): pushed out again, steadied once more.
+        # hand back in (a wrist 14 cm deep before its hold): pushed out again, steadied once more
+        # with the pushed joints held (smoothed, a released hand went 4 cm back into the box).
         cleared = clear_hands(joints, obj_pose, storyboard, config.contact.clear_frames)
-        pushed = np.flatnonzero(np.any(cleared != joints, axis=(0, 2, 3)))
+        moved = np.any(cleared != joints, axis=-1)                                  # (N, H, 22)
+        pushed = np.flatnonzero(moved.any(axis=(0, 2)))
         if len(pushed):
-            joints = steady_body(cleared, offsets, storyboard, config.steady, pushed)
+            joints = steady_body(cleared, offsets, storyboard, config.steady, pushed, held=moved)
     joints = _last_limb_pass(joints, config.last_limbs, objects)
     rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),

@@ -144,14 +144,16 @@ def _steady_person(path: np.ndarray, held: np.ndarray, offsets: np.ndarray, conf
 
 
 def steady_body(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
-                config: SteadyConfig = SteadyConfig(), people: Sequence[int] | None = None) -> np.ndarray:
+                config: SteadyConfig = SteadyConfig(), people: Sequence[int] | None = None,
+                held: np.ndarray | None = None) -> np.ndarray:
     """joints (N, H, 22, 3) on each person's skeleton, offsets (H, 22, 3) -> the same where nothing
-    pops; where something does, smoothed with the held joints (held_joints) kept. Only `people`
-    (indices; None: everyone) are steadied."""
+    pops; where something does, smoothed with the held joints (held_joints, and `held` (N, H, 22)
+    bool where given) kept. Only `people` (indices; None: everyone) are steadied."""
     out = np.array(joints, float)
     if len(out) < 4:
         return out
-    held = held_joints(out, storyboard, config.still, config.floor)
+    kept = held_joints(out, storyboard, config.still, config.floor)
+    held = kept if held is None else kept | held
     for h in range(out.shape[1]) if people is None else people:
         out[:, h] = _steady_person(out[:, h], held[:, h], offsets[h], config)
     return out

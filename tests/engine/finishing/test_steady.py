@@ -59,6 +59,18 @@ def test_a_jolted_chest_is_steadied_and_what_is_held_kept(scene):
         np.testing.assert_allclose(refit, out[:, h], atol=1e-6)
 
 
+
+def test_joints_the_caller_holds_are_kept_too(scene):
+    """The wrists a push out of an object placed (finish passes them) stay where they are."""
+    joints, offsets, storyboard = scene
+    frame = unheld_frame(held_joints(joints, storyboard, SteadyConfig().still, SteadyConfig().floor), 0)
+    popped = jolted(joints, offsets, frame, 0)
+    pushed = np.zeros(joints.shape[:3], bool)
+    pushed[frame - 2:frame + 3, 0, [JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"]]] = True
+    free, kept = steady_body(popped, offsets, storyboard), steady_body(popped, offsets, storyboard, held=pushed)
+    assert np.linalg.norm(free - popped, axis=-1)[pushed].max() > 0.01
+    np.testing.assert_allclose(kept[pushed], popped[pushed], atol=1e-9)
+
 def test_motion_that_does_not_pop_is_left_exactly(scene):
     joints, offsets, storyboard = scene
     calm = SteadyConfig(tolerance=1.0)          # nothing pops by a metre
