@@ -37,8 +37,8 @@ from .walk import walk_through_flights
 class FeetConfig:
     """Thresholds of the feet finishing; durations in frames at TUNED_FPS."""
     DURATIONS: ClassVar[tuple[str, ...]] = ("speed_sigma", "min_stance_frames", "blend_frames", "step_frames",
-                                            "max_step_frames", "swing_frames", "correction_frames", "settle_sigma", "crouch_window",
-                                            "crouch_sigma")
+                                            "max_step_frames", "swing_frames", "correction_frames", "settle_sigma",
+                                            "crouch_window", "crouch_sigma")
     # Foot joint height when standing (the rest skeleton's; EnergyConfig.foot_height).
     foot_height: float = 0.02        # m
     # A foot may be planted while its joint is under this height (metrics' contact height).
@@ -215,10 +215,11 @@ STILL_STEP = 1e-3   # m a frame; a foot moving less to and from a frame stands t
 def _retimed_swings(foot: np.ndarray, intervals: list[tuple[int, int]], config: FeetConfig,
                     keys: Sequence[int] = ()) -> np.ndarray:
     """The foot's path (N, 3) retimed along itself where it keeps its own path off its plants
-    (not where _foot_goal makes up a step), so that it leaves and lands slowly: its progress
-    along the path smoothed over time (config.swing_frames), still at the plants and where it is
-    at the key frames `keys` and wherever it stands still, where it jolts (spikes) more than config.swing_pop held still at them. Released at swing speed, a foot jolted 6-7 cm off its plant (20
-    artist-style storyboards: largest pop within 5 cm 12 -> 14). -> (N, 3)."""
+    (not where _foot_goal makes up a step) and, held still at the plants, would jolt (spike) more
+    than config.swing_pop: its progress along the path smoothed over time (config.swing_frames),
+    still at the plants, at the key frames `keys` and wherever it stands, so that it leaves and
+    lands slowly. Released at swing speed, a foot jolted 6-7 cm off its plant (20 artist-style
+    storyboards: largest pop within 5 cm 12 -> 13). -> (N, 3)."""
     out = foot.copy()
     n, pad = len(foot), 3
     stretches = [(0, intervals[0][0], False, True)] if intervals else []   # (first, last frame, still at them)
@@ -227,7 +228,8 @@ def _retimed_swings(foot: np.ndarray, intervals: list[tuple[int, int]], config: 
     stretches += [(intervals[-1][1] - 1, n - 1, True, False)] if intervals else []
     for first, last, still_first, still_last in stretches:
         span = np.arange(max(first, 0), min(last, n - 1) + 1)
-        held = np.concatenate([foot[span[:1]].repeat(2 * still_first, 0), foot[span], foot[span[-1:]].repeat(2 * still_last, 0)])
+        held = np.concatenate([foot[span[:1]].repeat(2 * still_first, 0), foot[span],
+                               foot[span[-1:]].repeat(2 * still_last, 0)])   # still at its plants
         if len(span) < 3 or spike(held).max() <= config.swing_pop:
             continue   # it leaves and lands smoothly already
         way = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(foot[span], axis=0), axis=-1))])
