@@ -39,6 +39,8 @@ class _Gesture:
     index: int = -1                       # object key index for move_object
     pose: tuple | None = None             # joint drags: the keypose's (points, mask) at the press
     mode: str = "rig"                     # joint drags: engine.rig's mode, from the keys held at the press
+    frame: int = 0                        # joint drags: the key's frame (a key pressed mid-drag moves
+                                          # the timeline, not the drag: it wrote the pose onto another key)
 
 
 class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
@@ -192,7 +194,7 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
     def _joint_gesture(self, uv, agent: str, joint: int) -> _Gesture:
         points, mask = self._keypose_points(agent, self._doc.frame)
         return _Gesture("joint", [uv, uv], agent=agent, joint=joint, pose=(points.copy(), mask.copy()),
-                        mode=_rig_mode(self._press_modifiers))
+                        mode=_rig_mode(self._press_modifiers), frame=self._doc.frame)
 
     def _press_select(self, uv):
         hit = self._joint_at(uv)
@@ -288,10 +290,10 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
         if g.kind not in ("joint", "move_object") or np.linalg.norm(delta) <= 1e-6:
             return None
         if g.kind == "joint":
-            posed, key = self._posed(g), cmd.find_keypose(self._doc.storyboard, g.agent, self._doc.frame)
+            posed, key = self._posed(g), cmd.find_keypose(self._doc.storyboard, g.agent, g.frame)
             depth = None if key is None or key.depth is None else \
                 moved_depth(g.pose[0], key.depth, posed, self._doc.storyboard.camera)   # bones kept in depth
-            return cmd.SetKeypose(self._doc, g.agent, self._doc.frame, posed, g.pose[1],
+            return cmd.SetKeypose(self._doc, g.agent, g.frame, posed, g.pose[1],
                                   "Pose " + JOINT_NAMES[g.joint], depth)
         return cmd.MoveObjectKey(self._doc, g.index, delta)
 

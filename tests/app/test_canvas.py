@@ -89,6 +89,27 @@ def test_place_and_pose_a_keypose(qtbot, canvas):
     assert cmd.find_keypose(doc.storyboard, "A", 30).points[wrist] == pytest.approx(moved)
 
 
+
+def test_a_frame_change_during_a_joint_drag_edits_the_key_the_drag_started_on(qtbot, canvas):
+    """A key press that moves the timeline while a joint is held (PageDown to the next key) must
+    not write the dragged pose onto the key it lands on."""
+    doc = canvas._doc
+    doc.set_tool("keypose")
+    for frame, u in ((30, 0.0), (60, 0.4)):
+        doc.set_frame(frame)
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+    later = cmd.find_keypose(doc.storyboard, "A", 60).points.copy()
+    doc.set_frame(30)
+    wrist = JOINT_INDEX["r_wrist"]
+    start = cmd.find_keypose(doc.storyboard, "A", 30).points[wrist].copy()
+    qtbot.mousePress(canvas, Qt.LeftButton, pos=px(canvas, start))
+    qtbot.mouseMove(canvas, px(canvas, start + (0.05, 0.2)))
+    doc.set_frame(60)                                                    # as PageDown does
+    qtbot.mouseMove(canvas, px(canvas, start + (0.1, 0.4)))
+    qtbot.mouseRelease(canvas, Qt.LeftButton, pos=px(canvas, start + (0.1, 0.4)))
+    assert cmd.find_keypose(doc.storyboard, "A", 60).points == pytest.approx(later)
+    assert cmd.find_keypose(doc.storyboard, "A", 30).points[wrist] == pytest.approx(start + (0.1, 0.4), abs=2 / canvas.zoom)
+
 def test_object_contact_and_erase_tools(qtbot, canvas):
     doc = canvas._doc
     doc.replace_storyboard(sample_storyboard(), None)
