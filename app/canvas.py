@@ -257,11 +257,14 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
             self.message.emit("Contact: click an object anchor (side of an object) or another person's hand.")
             return
         self._pending_hand = None
+        held = next((c for c in self._doc.storyboard.contacts if (c.agent, c.hand) == (agent, which)
+                     and c.start <= end and start <= c.end), None)
+        overlap = "" if held is None else f" (this hand also holds on over frames {held.start}-{held.end})"
         before = [c.anchor for c in self._doc.storyboard.contacts] + [contact.anchor]
         self._doc.undo_stack.push(cmd.AddContact(self._doc, contact))
         moved = "" if [c.anchor for c in self._doc.storyboard.contacts] == before else \
             " (grips chosen again: one hand to a grip, the left hand on its left)"
-        self.message.emit(f"Contact added: {cmd.describe_contact(self._doc.storyboard.contacts[-1])}{moved}")
+        self.message.emit(f"Contact added: {cmd.describe_contact(self._doc.storyboard.contacts[-1])}{moved}{overlap}")
 
     def _press_erase(self, uv):
         """Erase what is under the pointer: a joint, else the object key whose outline holds it

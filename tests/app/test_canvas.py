@@ -110,6 +110,7 @@ def test_a_frame_change_during_a_joint_drag_edits_the_key_the_drag_started_on(qt
     assert cmd.find_keypose(doc.storyboard, "A", 60).points == pytest.approx(later)
     assert cmd.find_keypose(doc.storyboard, "A", 30).points[wrist] == pytest.approx(start + (0.1, 0.4), abs=2 / canvas.zoom)
 
+
 def test_object_contact_and_erase_tools(qtbot, canvas):
     doc = canvas._doc
     doc.replace_storyboard(sample_storyboard(), None)
@@ -132,7 +133,9 @@ def test_object_contact_and_erase_tools(qtbot, canvas):
     qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, grips[3]))
     c = doc.storyboard.contacts[-1]
     assert (c.agent, c.hand, c.object, c.anchor, c.start, c.end) == ("A", "right", "box1", 3, 60, 80)
-    assert messages[-1] == "Contact added: A right hand \u2192 box1 anchor 3   [60\u201380]"   # not a stale prompt
+    # Not a stale prompt; and A's right hand already holds the box over 60-119: said so.
+    assert messages[-1] == ("Contact added: A right hand \u2192 box1 anchor 3   [60\u201380]"
+                            " (this hand also holds on over frames 60-119)")
     assert np.allclose(canvas._contact_ends(c)[1], grips[3])                   # the line goes to that grip
     count = len(doc.storyboard.trajectories)
     doc.set_tool("erase")
@@ -167,7 +170,8 @@ def test_a_grip_another_hand_holds_then_makes_both_take_grips_of_their_own(qtbot
         qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, grips[3]))
     a, b = doc.storyboard.contacts[held:]
     assert (a.agent, b.agent) == ("A", "B") and a.anchor != b.anchor
-    assert messages[-1].endswith("(grips chosen again: one hand to a grip, the left hand on its left)")
+    assert messages[-1].endswith("(grips chosen again: one hand to a grip, the left hand on its left)"
+                                 " (this hand also holds on over frames 60-119)")
     doc.undo_stack.undo()
     assert [c.anchor for c in doc.storyboard.contacts] == [c.anchor for c in doc.storyboard.contacts[:held]] + [3]
 
