@@ -326,7 +326,7 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
             field_name, mine = "object_paths", lambda s: s.object == sel.object
         else:
             field_name, mine = "trajectories", lambda s: s.agent == sel.agent and s.joint == sel.joint
-        start, end = doc.span_or((0, sb.length - 1))
+        start, end = doc.span_or(self._stroke_span(field_name, sel.agent))
         for i, s in enumerate(getattr(sb, field_name)):
             if not mine(s) or s.end < start or end < s.start:
                 continue
@@ -348,6 +348,16 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
             else Trajectory(sel.agent, sel.joint, start, end, points)
         doc.undo_stack.push(cmd.AddStroke(doc, field_name, item,
                                           "Draw object path" if field_name == "object_paths" else "Draw trajectory"))
+
+    def _stroke_span(self, field_name: str, agent: str) -> tuple[int, int]:
+        """The frames a new stroke covers where no frames are selected on the timeline: a person's
+        from their first keypose to their last (a pelvis path over the whole clip walked a person who
+        put a box down at a key 14 frames before the end 1.3 m towards the camera as they stood up:
+        a stroke says where on the page, not how deep, and a rising pelvis on the same point of the
+        page moves away along the view), the whole clip for an object or a person with fewer keys."""
+        sb = self._doc.storyboard
+        frames = sorted(k.frame for k in sb.keyposes if k.agent == agent) if field_name == "trajectories" else []
+        return (frames[0], frames[-1]) if len(frames) >= 2 and frames[0] < frames[-1] else (0, sb.length - 1)
 
     def _finish_rect(self, g: _Gesture):
         (u0, v0), (u1, v1) = g.points[0], g.points[-1]

@@ -69,6 +69,24 @@ def test_draw_a_trajectory(qtbot, canvas):
     assert doc.storyboard.trajectories[0].points == pytest.approx(t.points)
 
 
+def test_a_persons_stroke_covers_their_keys_unless_frames_are_selected(qtbot, canvas):
+    """Keys at frames 10 and 90: a pelvis stroke drawn with no frames selected runs from 10 to 90,
+    not over the whole clip (after the last key it walked the person off along the view)."""
+    doc = canvas._doc
+    doc.set_tool("keypose")
+    for frame, u in ((10, -0.6), (90, 0.6)):
+        doc.set_frame(frame)
+        qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (u, 0.0)))
+    doc.set_tool("trajectory")
+    doc.select(agent="A", joint="pelvis")
+    drag(qtbot, canvas, np.stack([np.linspace(-0.6, 0.6, 20), np.full(20, 0.1)], -1))
+    [t] = doc.storyboard.trajectories
+    assert (t.start, t.end) == (10, 90)
+    doc.select(agent="B", joint="pelvis")                     # B has no keys: the whole clip
+    drag(qtbot, canvas, np.stack([np.linspace(-0.6, 0.6, 20), np.full(20, -0.4)], -1))
+    assert (doc.storyboard.trajectories[-1].start, doc.storyboard.trajectories[-1].end) == (0, doc.storyboard.length - 1)
+
+
 def test_place_and_pose_a_keypose(qtbot, canvas):
     doc = canvas._doc
     doc.set_tool("keypose")
