@@ -27,6 +27,8 @@ from .strokes import clean_stroke, splice
 
 HIT_PX = 9.0            # how close (pixels) a click must be to a joint, stroke or anchor
 FRAME_MARGIN_PX = 40.0  # free border around the sketch when framing it
+SHORTEST_STROKE_PX = 12  # a shorter stroke is a slip of the mouse (a 6-pixel one became a path of
+                         # the head over the whole clip)
 
 
 @dataclass
@@ -317,6 +319,9 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
     def _finish_stroke(self, g: _Gesture):
         raw = np.array(g.points)
         if len(raw) < 2 or np.linalg.norm(raw.max(0) - raw.min(0)) * self.zoom < 3:
+            return
+        if np.linalg.norm(raw.max(0) - raw.min(0)) * self.zoom < SHORTEST_STROKE_PX:   # a slip, not a path
+            self.message.emit(f"That stroke is too short for a path ({len(raw)} points); drag further to draw one.")
             return
         doc, sel, sb = self._doc, self._doc.selection, self._doc.storyboard
         if sel.joint == OBJECT_PATH:

@@ -82,6 +82,10 @@ def test_a_persons_stroke_covers_their_keys_unless_frames_are_selected(qtbot, ca
     drag(qtbot, canvas, np.stack([np.linspace(-0.6, 0.6, 20), np.full(20, 0.1)], -1))
     [t] = doc.storyboard.trajectories
     assert (t.start, t.end) == (10, 90)
+    messages = []
+    canvas.message.connect(messages.append)
+    drag(qtbot, canvas, [np.array([0.0, 0.3]), np.array([0.02, 0.31]), np.array([0.03, 0.3])])   # a 5-pixel slip
+    assert len(doc.storyboard.trajectories) == 1 and "too short" in messages[-1]
     doc.select(agent="B", joint="pelvis")                     # B has no keys: the whole clip
     drag(qtbot, canvas, np.stack([np.linspace(-0.6, 0.6, 20), np.full(20, -0.4)], -1))
     assert (doc.storyboard.trajectories[-1].start, doc.storyboard.trajectories[-1].end) == (0, doc.storyboard.length - 1)
