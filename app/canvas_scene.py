@@ -118,12 +118,14 @@ class CanvasScene:
         return None
 
     def _anchor_at(self, uv) -> tuple[str, int] | None:
+        """(object id, anchor) of the grip under uv where the grips are at the playhead
+        (_grip_position: on the generated object between keys, where the hands are, not on the
+        stale key an artist cannot see grips on)."""
         for obj in self._doc.storyboard.objects:
-            found = self._object_outline(obj.id, self._doc.frame)
-            if found:
-                d = np.linalg.norm(self._anchors_2d(obj.id, found[1]) - uv, axis=-1)
-                if d.min() < 2 * self._hit():
-                    return obj.id, int(np.argmin(d))
+            grips = [self._grip_position(obj.id, a) for a in range(len(obj.spec.anchors))]
+            d = np.array([np.inf if g is None else float(np.linalg.norm(g - uv)) for g in grips])
+            if len(d) and d.min() < 2 * self._hit():
+                return obj.id, int(np.argmin(d))
         return None
 
     def _hand_at(self, uv, other_than: str | None = None) -> tuple[str, str] | None:

@@ -213,6 +213,17 @@ def test_a_contact_line_goes_to_the_generated_grip_between_object_keys(qtbot, ca
     grip = canvas._contact_ends(c)[1]
     assert np.allclose(grip, sb.camera.project(anchors[frame, 0, c.anchor]))
     assert np.linalg.norm(grip - stale) > 0.1
+    # The contact tool takes that grip too (the stale key's, where nothing is drawn, it refused).
+    anchors[:, 0, 1] = (0.3, 1.0, -0.4)                       # grip 1 apart from the others
+    doc.set_result([replace(clip, obj_anchors=anchors)], None)
+    doc.set_tool("contact")
+    count = len(doc.storyboard.contacts)
+    other = next(a for a in doc.storyboard.agents if a.id != c.agent).id
+    hand = canvas._hand_position(other, "left")
+    doc.set_span((frame, frame + 5))
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, hand))
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, sb.camera.project(anchors[frame, 0, 1])))
+    assert len(doc.storyboard.contacts) == count + 1 and doc.storyboard.contacts[-1].object == "box1"
 
 
 def test_what_was_in_view_stays_in_view_when_the_canvas_shrinks(qtbot, canvas):
