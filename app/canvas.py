@@ -318,9 +318,10 @@ class SketchCanvas(CanvasScene, CanvasPainting, QWidget):
 
     def _finish_stroke(self, g: _Gesture):
         raw = np.array(g.points)
-        if len(raw) < 2 or np.linalg.norm(raw.max(0) - raw.min(0)) * self.zoom < 3:
+        extent = np.linalg.norm(raw.max(0) - raw.min(0)) * self.zoom if len(raw) >= 2 else 0.0   # pixels
+        if extent < 3:
             return
-        if np.linalg.norm(raw.max(0) - raw.min(0)) * self.zoom < SHORTEST_STROKE_PX:   # a slip, not a path
+        if extent < SHORTEST_STROKE_PX:   # a slip, not a path
             self.message.emit(f"That stroke is too short for a path ({len(raw)} points); drag further to draw one.")
             return
         doc, sel, sb = self._doc, self._doc.selection, self._doc.storyboard

@@ -92,9 +92,13 @@ def _not_deeper(shoulder: np.ndarray, elbow: np.ndarray, moved: np.ndarray, wris
     (shoulder, wrist (N, H, 3)) deeper into the objects (obj_pose (N, O, 7))."""
     out = moved.copy()
     for h in range(elbow.shape[1]):
-        ends = shoulder[:, h, None], wrist[:, h, None]
-        depth = arm_penetration(ends[0], np.stack([elbow[:, h], moved[:, h]], 1), ends[1], obj_pose, specs)   # (N, 2)
-        deeper = depth[:, 1] > depth[:, 0] + DEEPER
+        changed = np.flatnonzero(np.any(moved[:, h] != elbow[:, h], axis=-1))   # only the smoothed frames
+        if not len(changed):
+            continue
+        ends = shoulder[changed, h, None], wrist[changed, h, None]
+        both = np.stack([elbow[changed, h], moved[changed, h]], 1)
+        depth = arm_penetration(ends[0], both, ends[1], obj_pose[changed], specs)   # (M, 2)
+        deeper = changed[depth[:, 1] > depth[:, 0] + DEEPER]
         out[deeper, h] = elbow[deeper, h]
     return out
 
