@@ -49,6 +49,9 @@ class FeetConfig:
     # however much it slides (the metric's skate speed is 0.5 m/s).
     stance_speed: float = 1.0        # m/s
     release_speed: float = 2.0       # m/s
+    # While the other foot is this high, a low foot slower than release_speed is planted: a
+    # runner's feet glided at 1-1.6 m/s under the other's swing (skate 8.8 -> 0.8% of the frames).
+    lifted_height: float = 0.04      # m
     speed_sigma: float = 3.0         # frames; smoothing of the foot path before its speed (the
                                      # decoder's feet jitter by up to 10 cm a frame)
     min_stance_frames: int = 3       # shorter stances are passing touches, left alone
@@ -95,11 +98,13 @@ def settle_on_ground(joints: np.ndarray, config: FeetConfig = FeetConfig()) -> n
 
 
 def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
-                     busy: np.ndarray | None = None, keys: Sequence[int] = ()) -> list[tuple[int, int]]:
+                     busy: np.ndarray | None = None, keys: Sequence[int] = (),
+                     other: np.ndarray | None = None) -> list[tuple[int, int]]:
     """Stance intervals [start, stop) of one foot's path (N, 3), in time order. `busy` (N,) bool
     marks frames in which the other foot is off its plant: a made-up step is moved to the nearest
     frame at which the other foot stands, and a short gap while it is off is held, so that a
-    gliding person walks rather than hops. A stance holding one of
+    gliding person walks rather than hops; `other` (N, 3), the other foot's path, marks the
+    frames in which it is lifted (config.lifted_height). A stance holding one of
     the key frames `keys` has a plant of its own around the key, while the foot is within half
     of max_drift of where it is at the key (lock_feet plants it there)."""
     low = foot[:, 1] < config.stance_height
@@ -109,6 +114,8 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
     else:
         speed = np.zeros(len(foot))
     strong, weak = low & (speed < config.stance_speed), low & (speed < config.release_speed)
+    if other is not None:   # the other foot up: this one bears the weight, however it glides
+        strong |= weak & (other[:, 1] >= config.lifted_height)
     if busy is not None:   # a short gap while the other foot is off its plant too would be a hop
         edges = np.flatnonzero(np.diff(np.concatenate([[0], weak.astype(int), [0]])))
         for stop, start in zip(edges[1:-1:2], edges[2::2]):
@@ -343,7 +350,8 @@ def lock_feet(joints: np.ndarray, fps: float, config: FeetConfig = FeetConfig(),
         busy = np.ones(len(joints), bool)                                      # left foot off its plant
         goals = []
         for side in range(2):
-            intervals = stance_intervals(pose[:, FEET[side]], fps, config, busy if side else None, held)
+            intervals = stance_intervals(pose[:, FEET[side]], fps, config, busy if side else None, held,
+                                         pose[:, FEET[1 - side]])
             for start, stop in intervals:
                 busy[start:stop] = False
             goals.append(_foot_goal(pose[:, FEET[side]], intervals, config, held) if intervals

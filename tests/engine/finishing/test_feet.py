@@ -147,6 +147,37 @@ def test_a_fast_glide_between_plants_becomes_a_step_without_a_jolt():
         assert goal[:, 1].max() > 0.05                           # it lifts: no slide
 
 
+def gait(n: int, phase: int, glide: float, config: FeetConfig) -> tuple[np.ndarray, np.ndarray]:
+    """A runner's foot path (n, 3): 8-frame swings 6 cm up at 3 m/s, and between them 8 frames
+    gliding along the floor at `glide` m/s, from frame `phase` of the cycle; and its gliding
+    frames (n,) bool."""
+    t = np.arange(n) + phase
+    swing = (t // 8) % 2 == 0
+    x = np.cumsum(np.where(swing, 3.0, glide)) / FPS
+    y = config.foot_height + np.where(swing, 0.06 * np.sin(np.pi * (t % 8 + 0.5) / 8), 0.0)
+    return np.stack([x, y, np.zeros(n)], -1), ~swing
+
+
+def test_a_low_foot_gliding_under_the_other_foots_swing_is_planted():
+    """A runner's foot glides at 1 m/s between its swings: amid the swings' speed too fast for a
+    stance of its own (it skated), but the other foot swings then, so it bears the weight and
+    is planted."""
+    n, config = 64, FeetConfig()
+    foot, gliding = gait(n, 0, 1.0, config)
+    other, _ = gait(n, 8, 1.0, config)
+    glides = [np.flatnonzero(gliding)[i:i + 8] for i in range(0, gliding.sum(), 8)]
+
+    def planted(intervals, frames):
+        return any(start <= frames[1] and frames[-2] < stop for start, stop in intervals)
+
+    assert not any(planted(stance_intervals(foot, FPS, config), frames) for frames in glides[:-1])
+    intervals = stance_intervals(foot, FPS, config, other=other)
+    goal = _foot_goal(foot, intervals, config)
+    for frames in glides:
+        assert planted(intervals, frames)
+        assert np.ptp(goal[frames[1]:frames[-1], 0]) < 1e-9             # still while the other swings
+
+
 def test_a_step_with_no_room_while_the_other_foot_stands_takes_a_brief_hop():
     """Two plants 0.77 m apart, 4 frames between them, the second short, the other foot up
     before the gap: rather than a 4-frame step (a jolt) the first plant ends early."""
