@@ -22,7 +22,7 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-from PySide6.QtCore import QPointF, QRectF, Qt, Signal
+from PySide6.QtCore import QLineF, QPointF, QRectF, QSizeF, Qt, Signal
 from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen, QPolygonF
 from PySide6.QtWidgets import QWidget
 
@@ -38,11 +38,26 @@ from .document import Document
 from .poses import key_facing, known_depth
 from .strokes import clean_stroke
 
-LABEL_PX = 14.0   # key labels closer than this (pixels) merge, or stack
+LABEL_PX = 14.0   # key labels closer than this (pixels) merge
 DISC_R = 7.0          # px
 GRID_M = 1.0          # metres between grid lines
 ARROW_M = 0.45        # length of a facing arrow on the floor
 OBJECT_COLOR = QColor("#b48a5c")   # the 3D view's light wood
+PAPER = QColor("#fbfaf7")
+LABEL_BACKING = QColor(PAPER.red(), PAPER.green(), PAPER.blue(), 190)   # a little see-through
+
+
+def label_place(beside: QRectF, size, taken: list[QRectF], view: QRectF) -> QRectF:
+    """Where a label of `size` goes beside the rectangle `beside`: right of it, left, above or
+    below, then a line further up or down at each side in turn, the first place that covers
+    nothing in `taken` and lies in `view` (else right of it)."""
+    w, h, gap = size.width(), size.height(), 2.0
+    c = beside.center()
+    sides = [QPointF(beside.right() + gap, c.y() - h / 2), QPointF(beside.left() - gap - w, c.y() - h / 2),
+             QPointF(c.x() - w / 2, beside.top() - gap - h), QPointF(c.x() - w / 2, beside.bottom() + gap)]
+    lines = [0] + [d * k for k in range(1, 5) for d in (1, -1)]
+    places = [QRectF(at + QPointF(0, line * h), size) for line in lines for at in sides]
+    return next((r for r in places if view.contains(r) and not any(r.intersects(t) for t in taken)), places[0])
 
 
 def standing_place(sb: Storyboard, key: Keypose) -> np.ndarray:
@@ -71,6 +86,7 @@ class FloorPlan(QWidget):
         self.centre = np.zeros(2)             # plan (right, away) coordinates at the widget's centre
         self._drag: tuple[str, object, list[np.ndarray]] | None = None   # (figure | turn | walk, key, [xz...])
         self._framed = True                   # the view frames the content (until the wheel zooms)
+        self.label_rects: list[QRectF] = []   # where the last paint put its labels (px)
         self.setMinimumSize(160, 140)
         self.setMouseTracking(False)
         for signal in (document.storyboardChanged, document.frameChanged, document.selectionChanged,
@@ -238,7 +254,7 @@ class FloorPlan(QWidget):
     def paintEvent(self, event):
         p = QPainter(self)
         p.setRenderHint(QPainter.Antialiasing)
-        p.fillRect(self.rect(), QColor("#fbfaf7"))
+        p.fillRect(self.rect(), PAPER)
         self._paint_grid(p)
         sb, doc = self._doc.storyboard, self._doc
         colors = {a.id: QColor(a.color) for a in sb.agents}
@@ -249,45 +265,50 @@ class FloorPlan(QWidget):
                 p.setPen(pen)
                 p.setBrush(Qt.NoBrush)
                 p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._walk(t)]))
-        placed: list[QRectF] = []    # labels drawn so far: a new one that would cover one goes lower
-        self._paint_objects(p, placed)
         moving = self._drag[1] if self._drag and self._drag[0] == "figure" else None
-        labels: list[list] = []      # [x, y, agent, frames]: keys standing together share one label
+        keys = []                    # (key, where its feet stand (x, z)), in frame order
         for k in sorted(sb.keyposes, key=lambda k: k.frame):
             xz = standing_place(sb, k)
-            if k is moving:
-                xz = xz + self._drag[2][-1] - self._drag[2][0]
-            x, y = self.to_px(xz)
+            keys.append((k, xz + self._drag[2][-1] - self._drag[2][0] if k is moving else xz))
+        # Labels go where they cover no disc and no other label (people standing together
+        # overprinted their frames and each other's discs).
+        discs = [QRectF(QPointF(*self.to_px(xz)) - QPointF(DISC_R, DISC_R), QSizeF(2 * DISC_R, 2 * DISC_R))
+                 for _, xz in keys]
+        taken = list(discs)
+        self._paint_objects(p, taken)
+        labels: list[list] = []      # [disc, agent, frames]: keys standing together share one label
+        for (k, xz), disc in zip(keys, discs):
             self._paint_arrow(p, k, xz, colors[k.agent])
             current = k.frame == doc.frame and k.agent == doc.selection.agent
             p.setPen(QPen(QColor("#1d1d1d") if current else colors[k.agent].darker(150), 2.4 if current else 1))
             p.setBrush(colors[k.agent])
-            p.drawEllipse(QPointF(x, y), DISC_R, DISC_R)
-            near = next((lab for lab in labels if lab[2] == k.agent and np.hypot(lab[0] - x, lab[1] - y) < LABEL_PX), None)
+            p.drawEllipse(disc)
+            gap = [QLineF(lab[0].center(), disc.center()).length() for lab in labels]
+            near = next((lab for lab, d in zip(labels, gap) if lab[1] == k.agent and d < LABEL_PX), None)
             if near:
-                near[3].append(k.frame)
+                near[2].append(k.frame)
             else:
-                labels.append([x, y, k.agent, [k.frame]])
+                labels.append([disc, k.agent, [k.frame]])
         p.setPen(QColor("#3a3a3a"))
-        for x, y, agent, frames in labels:
-            self._label(p, placed, QPointF(x + DISC_R + 2, y - 2), f"{agent} {', '.join(map(str, frames))}")
+        for disc, agent, frames in labels:
+            self._label(p, taken, disc, f"{agent} {', '.join(map(str, frames))}")
+        self.label_rects = taken[len(discs):]
         if self._drag and self._drag[0] == "walk" and len(self._drag[2]) > 1:
             p.setPen(QPen(colors.get(doc.selection.agent, QColor("#333")), 2))
             p.drawPolyline(QPolygonF([QPointF(*self.to_px(xz)) for xz in self._drag[2]]))
         self._paint_camera(p)
         p.end()
 
-    @staticmethod
-    def _label(p: QPainter, placed: list[QRectF], at: QPointF, text: str) -> None:
-        """Draw text with its baseline starting at `at`, a line lower (and lower) where it would
-        cover a label in `placed` (which it joins): keys and objects standing together overprinted."""
-        rect = QRectF(p.fontMetrics().boundingRect(text)).translated(at)
-        while any(rect.intersects(other) for other in placed):
-            rect.translate(0, LABEL_PX)
-        placed.append(rect)
-        p.drawText(rect.bottomLeft() - QPointF(0, p.fontMetrics().descent()), text)
+    def _label(self, p: QPainter, taken: list[QRectF], beside: QRectF, text: str) -> None:
+        """Draw text beside the rectangle `beside` (a disc, a footprint's corner) where it covers
+        nothing in `taken` (which it joins) and stays in the view (label_place)."""
+        size = QRectF(p.fontMetrics().boundingRect(text)).size()
+        rect = label_place(beside, size, taken, QRectF(self.rect()))
+        taken.append(rect)
+        p.fillRect(rect, LABEL_BACKING)   # readable over the paths and arrows it crosses
+        p.drawText(rect, Qt.AlignLeft | Qt.AlignVCenter, text)
 
-    def _paint_objects(self, p: QPainter, placed: list[QRectF]) -> None:
+    def _paint_objects(self, p: QPainter, taken: list[QRectF]) -> None:
         """Each object's footprint where a key of it stands on the floor (a key at a frame nobody
         holds it: in the hands its height is unknown, and taken for the floor it was drawn metres
         off), named with its frame; and, once generated, the way it travels (thin)."""
@@ -308,7 +329,7 @@ class FloorPlan(QWidget):
                 p.setBrush(QColor(OBJECT_COLOR.red(), OBJECT_COLOR.green(), OBJECT_COLOR.blue(), 70))
                 p.drawPolygon(QPolygonF([QPointF(*c) for c in corners]))
                 p.setPen(OBJECT_COLOR.darker(160))
-                self._label(p, placed, QPointF(*(corners.max(0) + (3, 0))), f"{obj.id} {key.frame}")
+                self._label(p, taken, QRectF(QPointF(*corners.min(0)), QPointF(*corners.max(0))), f"{obj.id} {key.frame}")
 
     def _paint_arrow(self, p: QPainter, key: Keypose, xz: np.ndarray, color: QColor) -> None:
         """The way the keypose faces, as an arrow from its disc (towards the pointer while turned);

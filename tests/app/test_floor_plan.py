@@ -4,17 +4,18 @@ coordinates, replaced when drawn again over the same frames, refused over other 
 arrow's tip dragged turns the figure where it stands."""
 import numpy as np
 import pytest
-from PySide6.QtCore import QPoint, QPointF, Qt
+from PySide6.QtCore import QPoint, QPointF, QRectF, Qt
 from PySide6.QtGui import QWheelEvent
 from PySide6.QtWidgets import QApplication
 
 from app import commands as cmd
 from app.document import Document
-from app.floor_plan import FloorPlan, standing_place
+from app.examples import EXAMPLES_DIR
+from app.floor_plan import DISC_R, FloorPlan, standing_place
 from engine.facing import depth_of, facing, lift
 from engine.finishing.held import sketched_rest
 from engine.poses import library_pose
-from engine.storyboard import floor_path_points
+from engine.storyboard import Storyboard, floor_path_points
 
 from .fakes import sample_storyboard, walking_clip
 
@@ -168,3 +169,25 @@ def test_an_object_key_shows_its_footprint_and_the_generated_object_its_way(qtbo
     assert not tinted(widget, way)
     doc.set_result([clip], None)
     assert tinted(widget, way)
+
+
+@pytest.mark.parametrize("name", ["box_handoff", "carry_table", "handshake", "let_go"])
+def test_labels_cover_no_disc_and_no_other_label(qtbot, name):
+    """People standing together at their keys (every bundled example, in a small dock): each
+    label lies in the view, clear of every key's disc and of the other labels (they overprinted)."""
+    doc = Document(Storyboard.load(EXAMPLES_DIR / f"{name}.json"))
+    widget = FloorPlan(doc)
+    widget.resize(440, 420)
+    qtbot.addWidget(widget)
+    widget.show()
+    qtbot.waitExposed(widget)
+    widget.fit()
+    widget.grab()
+    labels = widget.label_rects
+    assert len(labels) >= 2
+    discs = [np.asarray(widget.to_px(standing_place(doc.storyboard, k))) for k in doc.storyboard.keyposes]
+    for i, rect in enumerate(labels):
+        assert widget.rect().toRectF().contains(rect)
+        assert not any(rect.intersects(other) for other in labels[i + 1:])
+        for x, y in discs:   # the disc's square
+            assert not rect.intersects(QRectF(x - DISC_R, y - DISC_R, 2 * DISC_R, 2 * DISC_R))
