@@ -15,7 +15,8 @@ that keep each person's bone lengths:
 4. the object as a rigid body that moves only in the hands that hold it, resting clear of the
    people's legs otherwise (held.py), and the arms reaching its grips (or the partner's hand)
    over every contact span (contacts.py); a holder the grip is beyond arm's reach of steps
-   towards it first, before the feet are planted (held.py); for an object the storyboard gives
+   towards it first, before the feet are planted (held.py), and a holder the grips are below the
+   reach of crouches to them (crouch.py); for an object the storyboard gives
    no contact, the holds are the generated motion's (inferred.py); hands out of a hold pushed
    out of the objects they sink into (clearance.py);
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
@@ -38,6 +39,7 @@ from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from .clearance import clear_hands
 from .contacts import ContactConfig, object_anchors, reach_contacts
+from .crouch import crouch_to_grips
 from .feet import FeetConfig, lock_feet, settle_on_ground
 from .held import hold_object, step_within_reach
 from .inferred import InferConfig, with_generated_contacts
@@ -127,6 +129,7 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
     kw = {}
     if config.contacts and clip.obj_pose is not None and storyboard.objects:
         pose = hold_object(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
+        joints = crouch_to_grips(joints, pose, storyboard, config.contact)
         kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
     if config.contacts:
         joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact, kw.get("obj_pose"))

@@ -29,7 +29,8 @@ from .swivel import swivel_clear
 class ContactConfig:
     DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "most_handover_frames", "lift_frames", "smooth_sigma",
                                             "reach_smoothing", "frames_per_metre", "swivel_sigma", "clear_frames",
-                                            "sunk_frames", "held_clear_frames")
+                                            "sunk_frames", "held_clear_frames", "crouch_frames_per_metre",
+                                            "crouch_sigma")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
     sunk_frames: int = 18          # frames before (after) a span within which a hand inside the object holds on
     handover_pop: float = 0.02     # m a grip may spike where a held object eases out the turn that a hand
@@ -61,6 +62,11 @@ class ContactConfig:
     reach_smoothing: float = 3.0   # frames; Gaussian sigma of a holder's step offsets
     frames_per_metre: float = 25.0  # frames a holder's step offset takes to grow by a metre away from a key
     grip_rise: float = 0.9         # share of the reach a held grip may lie below or above its shoulder
+    crouch_frames_per_metre: float = 50.0   # frames a holder takes to crouch a metre to grips below its
+                                   # reach (crouch.py; 2 cm a frame at 20 fps: at 3, 20 artist-style
+                                   # storyboards' largest pops within 5 cm 15 -> 14, the worst 6.8 -> 7.4 cm) ...
+    crouch_sigma: float = 1.5      # ... smoothed over this many frames ...
+    lowest_squat: float = 0.7      # ... the pelvis no lower than this share of the legs' length
 
 
 def anchor_table(storyboard: Storyboard) -> np.ndarray:

@@ -1,0 +1,84 @@
+"""Holders crouch to grips below their reach (crouch.py): a person standing tall over a box on
+the floor lowers towards its grips while holding it, as low as a squat goes, the feet staying
+where they stand, every bone keeping its length, smoothly, and not at a key frame."""
+import numpy as np
+
+from engine.finishing.contacts import ContactConfig, arm_lengths, object_anchors
+from engine.finishing.crouch import _crouched, _depth, crouch_to_grips
+from engine.finishing.limbs import DEEPER
+from engine.finishing.feet import reach_with_leg
+from engine.objects import ObjectSpec
+from engine.skeleton import ANKLES, FEET, HIPS, KNEES, SHOULDERS, bone_lengths, rest_pose
+from engine.storyboard import Agent, Contact, Keypose, SceneObject, Storyboard
+from engine.synth.reach import UP
+
+N, HOLD = 80, (30, 50)
+
+
+def standing_over_a_box(keys=(), ahead: float = 0.45):
+    """One person standing still, a box on the floor `ahead` m in front, held by both hands over HOLD.
+    Returns storyboard, joints (N, 1, 22, 3), the box's pose (N, 1, 7)."""
+    sb = Storyboard(length=N, agents=[Agent("A")], objects=[SceneObject("box", ObjectSpec("box", (0.4, 0.5, 0.3)))],
+                    contacts=[Contact("A", "left", *HOLD, "box", 2), Contact("A", "right", *HOLD, "box", 0)])
+    sb.keyposes = [Keypose("A", k, np.zeros((22, 2)), np.arange(22) == 0) for k in keys]   # the pelvis placed
+    pose = np.zeros((N, 1, 7))
+    pose[:, 0, 2], pose[:, 0, 3] = ahead, 1.0                       # at z = ahead, unturned
+    return sb, np.tile(knees_bent(), (N, 1, 1, 1)), pose
+
+
+def knees_bent(by: float = 0.05) -> np.ndarray:
+    """The rest pose (22, 3) lowered `by` m on its feet (a straight leg reaches no lower)."""
+    rest = rest_pose()
+    pose = rest - by * UP
+    for side, foot in enumerate(FEET):
+        pose = reach_with_leg(pose[None], side, rest[None, foot])[0]
+    return pose
+
+
+def test_a_holder_crouches_towards_grips_below_its_reach():
+    sb, joints, pose = standing_over_a_box()
+    config = ContactConfig()
+    out = crouch_to_grips(joints, pose, sb, config)
+    anchors = object_anchors(pose, sb)
+    drop = joints[:, 0, 0, 1] - out[:, 0, 0, 1]
+    legs = (np.linalg.norm(joints[:, 0, list(KNEES)] - joints[:, 0, list(HIPS)], axis=-1)
+            + np.linalg.norm(joints[:, 0, list(ANKLES)] - joints[:, 0, list(KNEES)], axis=-1)).mean(-1)
+    lowest = config.lowest_squat * legs
+    middle = slice(HOLD[0] + 3, HOLD[1] - 2)
+    assert np.allclose(out[middle, 0, 0, 1], lowest[middle], atol=2e-3)       # the grips are far below: a full squat
+    assert (out[:, 0, 0, 1] >= lowest - 1e-9).all()
+    grip = anchors[:, 0, [2, 0]]
+    before = np.linalg.norm(grip - joints[:, 0, list(SHOULDERS)], axis=-1)
+    after = np.linalg.norm(grip - out[:, 0, list(SHOULDERS)], axis=-1)
+    assert (after[middle] < before[middle] - 0.2).all()
+    np.testing.assert_allclose(out[:, 0, list(FEET)], joints[:, 0, list(FEET)], atol=1e-9)   # the feet stay
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(joints), atol=1e-9)
+    np.testing.assert_allclose(arm_lengths(out), arm_lengths(joints), atol=1e-9)
+    assert np.abs(np.diff(drop, 2)).max() < 0.03                               # eased in and out
+    # Down by the hold's start, 3 cm a frame, from where it is eased onto the grips.
+    ramp = HOLD[0] - config.blend_frames - int(np.ceil(drop.max() * config.crouch_frames_per_metre))
+    assert drop[ramp - 5:ramp + 1].max() < 0.02 and drop[HOLD[0]] > 0.3
+    far = np.r_[:ramp - 6, 2 * np.mean(HOLD).astype(int) - ramp + 6:N]
+    np.testing.assert_allclose(out[far], joints[far])                          # only around the hold
+
+
+def test_a_key_frame_in_the_hold_keeps_its_pose():
+    sb, joints, pose = standing_over_a_box(keys=[40])
+    out = crouch_to_grips(joints, pose, sb)
+    np.testing.assert_allclose(out[40], joints[40])
+    assert out[33, 0, 0, 1] < joints[33, 0, 0, 1] - 0.1
+
+
+def test_grips_within_reach_need_no_crouch():
+    sb, joints, pose = standing_over_a_box()
+    raised = pose + np.array([0.0, 0.85, -0.2, 0, 0, 0, 0])                  # at the chest, in front
+    np.testing.assert_allclose(crouch_to_grips(joints, raised, sb), joints)
+
+
+def test_a_crouch_takes_no_knee_into_the_box():
+    """The box close in front: a full squat would put the knees into it; the crouch stops short."""
+    sb, joints, pose = standing_over_a_box(ahead=0.3)
+    out = crouch_to_grips(joints, pose, sb)
+    objects = (pose, [o.spec for o in sb.objects])
+    assert (_depth(out[:, 0], objects) <= _depth(joints[:, 0], objects) + DEEPER + 1e-9).all()
+    assert _depth(_crouched(joints[:, 0], np.full(N, 0.35)), objects).max() > 0.03   # it would have
