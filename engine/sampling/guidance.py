@@ -69,10 +69,13 @@ class EnergyGuidance:
         energy, grad = z0.new_zeros(z0.shape[0]), torch.zeros_like(z0)
         with torch.enable_grad():
             if cfg.use_energy:
-                zg = z0 if self.surrogate is not None else z0.detach().requires_grad_(True)
-                motion = self.decode(zg)
-                if self.surrogate is not None:   # stop at the motion, route through B_rho
+                if self.surrogate is not None:   # stop at the motion (no graph through the decoder), route through B_rho
+                    with torch.no_grad():
+                        motion = self.decode(z0)
                     motion = {k: v.detach().requires_grad_(True) for k, v in motion.items()}
+                else:
+                    zg = z0.detach().requires_grad_(True)
+                    motion = self.decode(zg)
                 total, terms = total_energy(self.storyboard_view(motion), self.energies, t, self.weights,
                                             self.enabled, occupancy)
                 if self.surrogate is None:
@@ -80,7 +83,8 @@ class EnergyGuidance:
                 else:
                     raw = torch.autograd.grad(total.sum(), list(motion.values()), allow_unused=True)
                     raw = {k: torch.zeros_like(v) if g is None else g for (k, v), g in zip(motion.items(), raw)}
-                    routed = self.surrogate(raw)
+                    with torch.no_grad():   # a gradient to follow, not to differentiate
+                        routed = self.surrogate(raw)
                     grad = grad + routed
                     if cfg.check_surrogate:
                         exact = exact_latent_gradient(self.vqvae.decode, z0, flatten_motion(raw))
