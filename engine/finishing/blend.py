@@ -16,7 +16,7 @@ import numpy as np
 from scipy.linalg import solveh_banded
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
-from ..geometry.rotations import normalize
+from ..geometry.rotations import norm, normalize
 from ..synth.trajectory import smoothstep
 
 HELD_WEIGHT = 1e8     # a held frame's weight against the smoothness: held to far below a millimetre
@@ -54,18 +54,18 @@ def eased_push(push: np.ndarray, frames: float) -> np.ndarray:
     asked: their length the larger of its own and its smoothed running maximum, along their
     smoothed direction. Exact at the frames that asked and smoothed between, a push that came and
     went over a frame or two was a pop that later smoothing halved, putting back what it pushed out."""
-    length = np.linalg.norm(push, axis=-1)
+    length = norm(push)
     window = 2 * int(np.ceil(frames)) + 1
     envelope = np.maximum(gaussian_filter1d(maximum_filter1d(length, window), frames, mode="nearest"), length)
     direction = gaussian_filter1d(push, frames, axis=0, mode="nearest")
-    return np.where(np.linalg.norm(direction, axis=-1, keepdims=True) > 1e-9, envelope[:, None] * normalize(direction), 0.0)
+    return np.where(norm(direction, keepdims=True) > 1e-9, envelope[:, None] * normalize(direction), 0.0)
 
 
 def spike(path: np.ndarray) -> np.ndarray:
     """How far each frame of a path (N, ..., 3) lies off the middle of its neighbours -> (N, ...);
     the first and last frames 0."""
     out = np.zeros(path.shape[:-1])
-    out[1:-1] = np.linalg.norm(path[1:-1] - 0.5 * (path[:-2] + path[2:]), axis=-1)
+    out[1:-1] = norm(path[1:-1] - 0.5 * (path[:-2] + path[2:]))
     return out
 
 

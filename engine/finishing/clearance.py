@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..body import JOINT_RADII
-from ..geometry.rotations import quat_to_matrix
+from ..geometry.rotations import norm, quat_to_matrix
 from ..objects import ObjectSpec, world_to_local
 from ..storyboard import Storyboard
 from .blend import eased_push
@@ -32,7 +32,7 @@ def _outward(points: np.ndarray, obj_pose: np.ndarray, spec: ObjectSpec) -> tupl
     local = world_to_local(points, obj_pose)
     sdf = spec.sdf_local(local)
     grad = np.stack([spec.sdf_local(local + STEP * axis) - sdf for axis in np.eye(3)], -1) / STEP
-    grad /= np.maximum(np.linalg.norm(grad, axis=-1, keepdims=True), 1e-9)
+    grad /= np.maximum(norm(grad, keepdims=True), 1e-9)
     return sdf, grad @ np.swapaxes(quat_to_matrix(obj_pose[:, 3:]), -1, -2)
 
 
@@ -59,9 +59,9 @@ def clear_hands(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
         if not moved.any():
             continue
         root, mid, end = out[:, :, shoulder][moved], out[:, :, elbow][moved], out[:, :, wrist][moved]
-        upper, lower = np.linalg.norm(mid - root, axis=-1), np.linalg.norm(end - mid, axis=-1)
+        upper, lower = norm(mid - root), norm(end - mid)
         reach = end + push[moved] - root
-        dist = np.maximum(np.linalg.norm(reach, axis=-1), 1e-9)
+        dist = np.maximum(norm(reach), 1e-9)
         goal = root + reach * (np.minimum(dist, upper + lower) / dist)[:, None]
         out[:, :, elbow][moved] = on_circle(root, goal, upper, lower, mid)
         out[:, :, wrist][moved] = goal

@@ -15,7 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..body import JOINT_RADII
-from ..geometry.rotations import normalize
+from ..geometry.rotations import norm, normalize
 from ..objects import local_to_world, world_to_local
 from ..skeleton import ELBOWS, HANDS, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
@@ -92,7 +92,7 @@ def forward_of(joints: np.ndarray) -> np.ndarray:
 def arm_lengths(joints: np.ndarray) -> np.ndarray:
     """Shoulder-to-elbow plus elbow-to-wrist length of each arm: (N, H, 22, 3) -> (N, H, 2)."""
     shoulder, elbow, wrist = (joints[:, :, list(j)] for j in (SHOULDERS, ELBOWS, HANDS))
-    return np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1)
+    return norm(elbow - shoulder) + norm(wrist - elbow)
 
 
 def span_weight(n: int, start: int, end: int, blend: int) -> np.ndarray:
@@ -202,8 +202,8 @@ def reach_with_arms(joints: np.ndarray, target: np.ndarray, weight: np.ndarray, 
         bend = bend - np.sum(bend * axis, axis=-1, keepdims=True) * axis
         pole = continuous_pole(steady_pole(bend, -UP - forward), axis)[moving]
         shoulder, elbow, wrist, goal = shoulder[moving], elbow[moving], wrist[moving], goal[moving]
-        upper = np.linalg.norm(elbow - shoulder, axis=-1, keepdims=True)
-        lower = np.linalg.norm(wrist - elbow, axis=-1, keepdims=True)
+        upper = norm(elbow - shoulder, keepdims=True)
+        lower = norm(wrist - elbow, keepdims=True)
         new_elbow, new_wrist = two_bone_ik(shoulder, goal, upper, lower, pole)
         if obj_pose is not None and moving.any():
             frames, people = np.nonzero(moving)

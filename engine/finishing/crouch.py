@@ -12,6 +12,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..body import body_points
+from ..geometry.rotations import norm
 from ..objects import world_to_local
 from ..skeleton import ANKLES, FEET, HIPS, KNEES, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
@@ -68,12 +69,12 @@ def _need(joints: np.ndarray, anchors: np.ndarray, storyboard: Storyboard, confi
         grip = anchors[np.clip(frames, c.start, c.end), o, c.anchor]                    # (N, 3)
         shoulder = joints[:, a, SHOULDERS[side]]
         reach = config.reach * arms[:, a, side]
-        across = np.linalg.norm((grip - shoulder)[:, [0, 2]], axis=-1)
+        across = norm((grip - shoulder)[:, [0, 2]])
         below = np.sqrt(np.maximum(reach ** 2 - across ** 2, 0.0))                    # the lowest it reaches
         short = np.where(across < reach, shoulder[:, 1] - grip[:, 1] - below, 0.0)
         need[:, a] = np.maximum(need[:, a], span_weight(n, c.start, c.end, config.blend_frames) * short)
-    legs = (np.linalg.norm(joints[:, :, list(KNEES)] - joints[:, :, list(HIPS)], axis=-1)
-            + np.linalg.norm(joints[:, :, list(ANKLES)] - joints[:, :, list(KNEES)], axis=-1)).mean(-1)   # (N, H)
+    legs = (norm(joints[:, :, list(KNEES)] - joints[:, :, list(HIPS)])
+            + norm(joints[:, :, list(ANKLES)] - joints[:, :, list(KNEES)])).mean(-1)   # (N, H)
     return np.clip(need, 0.0, np.maximum(joints[:, :, 0, 1] - config.lowest_squat * legs, 0.0))
 
 

@@ -24,7 +24,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import distance_transform_edt, gaussian_filter1d, label, maximum_filter1d
 
-from ..geometry.rotations import normalize
+from ..geometry.rotations import norm, normalize
 from ..skeleton import ANKLES, FEET, HIPS, KNEES
 from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
@@ -110,7 +110,7 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
     low = foot[:, 1] < config.stance_height
     if len(foot) > 1:
         path = gaussian_filter1d(foot, config.speed_sigma, axis=0, mode="nearest")
-        speed = np.linalg.norm(np.gradient(path, axis=0), axis=-1) * fps
+        speed = norm(np.gradient(path, axis=0)) * fps
     else:
         speed = np.zeros(len(foot))
     strong, weak = low & (speed < config.stance_speed), low & (speed < config.release_speed)
@@ -132,7 +132,7 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
             key = next((k for k in keys if start <= k < stop), None)
             lift = None                          # where a step into a key's plant starts
             if key is not None:   # the key's plant, where the key has the foot, lasts while it is near
-                near = np.linalg.norm(foot[start:stop, [0, 2]] - foot[key, [0, 2]], axis=-1) <= config.max_drift / 2
+                near = norm(foot[start:stop, [0, 2]] - foot[key, [0, 2]]) <= config.max_drift / 2
                 far = np.flatnonzero(~near) + start
                 first = max(far[far < key], default=start - 1) + 1
                 end = min(far[far > key], default=stop)
@@ -145,7 +145,7 @@ def stance_intervals(foot: np.ndarray, fps: float, config: FeetConfig = FeetConf
                     lift = _free_step(busy, preferred, lo, hi, config.step_frames, int(np.clip(preferred, lo, hi)))
             if key is None or lift is not None:  # a plant of the foot's own, until it drifts
                 until = stop if lift is None else lift
-                drift = np.linalg.norm(foot[start:until, [0, 2]] - foot[start, [0, 2]], axis=-1)
+                drift = norm(foot[start:until, [0, 2]] - foot[start, [0, 2]])
                 end = start + int(np.argmax(drift > config.max_drift)) if drift.max() > config.max_drift else until
             # The step waits for the other foot to stand, but not long: a plant held on while
             # the foot glides away would leave it metres to cover in one step.
@@ -241,7 +241,7 @@ def _retimed_swings(foot: np.ndarray, intervals: list[tuple[int, int]], config: 
                                foot[span[-1:]].repeat(2 * still_last, 0)])   # still at its plants
         if len(span) < 3 or spike(held).max() <= config.swing_pop:
             continue   # it leaves and lands smoothly already
-        way = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(foot[span], axis=0), axis=-1))])
+        way = np.concatenate([[0.0], np.cumsum(norm(np.diff(foot[span], axis=0)))])
         before, after = pad * still_first, pad * still_last
         values = np.concatenate([np.zeros(before), way, np.full(after, way[-1])])
         weight = np.ones(len(values))
@@ -374,10 +374,10 @@ def _crouch(pose: np.ndarray, goals: list[np.ndarray], config: FeetConfig) -> np
     need = np.zeros(len(pose))
     for side, goal in enumerate(goals):
         hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
-        length = config.leg_extension * (np.linalg.norm(pose[:, knee] - pose[:, hip], axis=-1)
-                          + np.linalg.norm(pose[:, ankle] - pose[:, knee], axis=-1))
+        length = config.leg_extension * (norm(pose[:, knee] - pose[:, hip])
+                          + norm(pose[:, ankle] - pose[:, knee]))
         reach = goal - (pose[:, toe] - pose[:, ankle]) - pose[:, hip]          # hip -> ankle goal
-        across = np.linalg.norm(reach[:, [0, 2]], axis=-1)
+        across = norm(reach[:, [0, 2]])
         need = np.maximum(need, -reach[:, 1] - np.sqrt(np.maximum(length ** 2 - across ** 2, 0.0)))
     need = np.clip(need, 0.0, config.max_crouch)
     held = maximum_filter1d(need, config.crouch_window, mode="nearest")
@@ -397,8 +397,8 @@ def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.nd
     hip, knee, ankle, toe = HIPS[side], KNEES[side], ANKLES[side], FEET[side]
     out = poses.copy()
     foot_offset = poses[:, toe] - poses[:, ankle]
-    upper = np.linalg.norm(poses[:, knee] - poses[:, hip], axis=-1, keepdims=True)
-    lower = np.linalg.norm(poses[:, ankle] - poses[:, knee], axis=-1, keepdims=True)
+    upper = norm(poses[:, knee] - poses[:, hip], keepdims=True)
+    lower = norm(poses[:, ankle] - poses[:, knee], keepdims=True)
     axis = normalize(poses[:, ankle] - poses[:, hip])
     bend = poses[:, knee] - poses[:, hip]
     bend -= np.sum(bend * axis, axis=-1, keepdims=True) * axis
@@ -410,7 +410,7 @@ def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.nd
     # Nor does it straighten fully: near straight a knee swings far for a small change of reach
     # (one came back from straight to reach its lifting foot 23 cm in a frame).
     reach = foot_goal - foot_offset - poses[:, hip]
-    length = np.maximum(np.linalg.norm(reach, axis=-1, keepdims=True), 1e-9)
+    length = np.maximum(norm(reach, keepdims=True), 1e-9)
     reach *= np.minimum(1.0, STRAIGHTEST * (upper + lower) / length)
     out[:, knee], out[:, ankle] = two_bone_ik(poses[:, hip], poses[:, hip] + reach, upper, lower, pole)
     out[:, toe] = out[:, ankle] + foot_offset

@@ -21,7 +21,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from ..body import BONES, body_points
 from ..camera import StoryboardCamera
-from ..geometry.rotations import normalize, quat_to_matrix
+from ..geometry.rotations import norm, normalize, quat_to_matrix
 from ..objects import ObjectSpec, world_to_local
 from ..skeleton import ELBOWS, HANDS, JOINT_NAMES, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
@@ -119,7 +119,7 @@ def _within_holders_reach(move: np.ndarray, place: np.ndarray, frames: list[int]
 
     def beyond(t: float) -> np.ndarray:
         at = place[:3] + t * move + turned
-        return np.where(held[frames], np.maximum(np.linalg.norm(at - shoulders, axis=-1) - reach, 0.0), 0.0)
+        return np.where(held[frames], np.maximum(norm(at - shoulders) - reach, 0.0), 0.0)
 
     unmoved = beyond(0.0)
     t = next((t for t in np.linspace(1.0, 0.0, 11) if np.all(beyond(t) <= unmoved + config.rest_reach_slack)), 0.0)
@@ -137,7 +137,7 @@ def _rest_clear_of_people(pose: np.ndarray, joints: np.ndarray, grips: np.ndarra
     table slid 20 cm from the knees of two people shaking hands over it came out of one carrier's
     reach as they lifted it)."""
     n = len(pose)
-    still = np.linalg.norm(np.diff(pose[:, :3], axis=0), axis=-1) < 1e-6
+    still = norm(np.diff(pose[:, :3], axis=0)) < 1e-6
     resting = (np.concatenate([[True], still]) & np.concatenate([still, [True]]) & ~held.any(axis=1)
                & (np.abs(pose[:, 1] - config.rest_height) < 1e-6))
     points, radii = _body_spheres(joints)
@@ -193,7 +193,7 @@ def _within_reach_across(pos: np.ndarray, yaw: np.ndarray, joints: np.ndarray, g
     pos = pos.copy()
     for _ in range(iterations):
         to_shoulder = shoulders - pos[:, None] - turned                          # grip -> shoulder
-        beyond = np.where(held, np.maximum(np.linalg.norm(to_shoulder, axis=-1) - reach, 0.0), 0.0)
+        beyond = np.where(held, np.maximum(norm(to_shoulder) - reach, 0.0), 0.0)
         count = np.maximum(np.count_nonzero(beyond, axis=1), 1)[:, None]
         pos += np.sum(beyond[..., None] * normalize(to_shoulder * (1.0, 0.0, 1.0)), axis=1) / count
     return pos
@@ -244,7 +244,7 @@ def _eased_handovers(yaw: np.ndarray, held: np.ndarray, grips: np.ndarray, confi
     changes = [c for c in range(1, len(yaw)) if held[c].any() and held[c - 1].any() and (held[c] != held[c - 1]).any()]
     if not changes:
         return yaw
-    radius = np.max(np.linalg.norm(grips[..., [0, 2]], axis=-1))   # how far a turn moves a grip
+    radius = np.max(norm(grips[..., [0, 2]]))   # how far a turn moves a grip
     return ease_jumps(yaw[:, None], changes, lambda turn: ease_frames(
         radius * turn, config.handover_pop, config.blend_frames, config.most_handover_frames))[:, 0]
 
@@ -415,7 +415,7 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
             # The horizontal distance at which the grip is `reach` of the arm away (0 when it is
             # farther than that below or above the shoulder: then stand right by it).
             allowed = np.sqrt(np.maximum((config.reach * arm) ** 2 - reach[:, 1] ** 2, 0.0))
-            distance = np.linalg.norm(across, axis=-1)
+            distance = norm(across)
             short = across * (np.maximum(distance - allowed, 0.0) / np.maximum(distance, 1e-9))[:, None]
             w = span_weight(n, c.start, c.end, config.blend_frames) * (distance > allowed)
             need[:, a] += w[:, None] * short
@@ -427,7 +427,7 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
             weight[:, a] += w
         step = need / np.maximum(weight, 1.0)[..., None]          # the short hands' shortfalls averaged
         moved += gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
-        length = np.maximum(np.linalg.norm(moved, axis=-1), 1e-9)
+        length = np.maximum(norm(moved), 1e-9)
         moved *= np.minimum(1.0, room / length)[..., None]
         joints = start + moved[:, :, None]
     return joints

@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..clip import MotionClip
+from ..geometry.rotations import norm
 from ..skeleton import HANDS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Contact, Storyboard
@@ -44,7 +45,7 @@ def with_generated_contacts(clip: MotionClip, storyboard: Storyboard, config: In
     engaged = np.ones(n, bool) if clip.phase is None else np.asarray(clip.phase)[:, 1:].sum(-1) > 0.5
     added = []
     for o in open_objects:
-        dist = np.linalg.norm(wrists[:, :, :, None] - anchors[:, None, None, o], axis=-1)   # (N, H, 2, K)
+        dist = norm(wrists[:, :, :, None] - anchors[:, None, None, o])   # (N, H, 2, K)
         for h, agent in enumerate(storyboard.agents):
             for s, hand in enumerate(HAND_NAMES):
                 near = (dist[:, h, s].min(-1) < config.reach) & engaged

@@ -17,7 +17,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import label, maximum_filter1d
 
-from ..geometry.rotations import matrix_to_6d, normalize, sixd_to_matrix
+from ..geometry.rotations import matrix_to_6d, norm, normalize, sixd_to_matrix
 from ..objects import ObjectSpec
 from ..skeleton import ELBOWS, JOINT_INDEX, forward_kinematics
 from .blend import smooth_path, spike
@@ -45,7 +45,7 @@ def on_circle(root: np.ndarray, end: np.ndarray, upper: np.ndarray, lower: np.nd
     (..., 3), bone lengths upper, lower (...,) -> (..., 3). The place keeps both bone lengths
     exactly wherever the ends are within reach of each other (finishing keeps them so)."""
     to_end = end - root
-    dist = np.maximum(np.linalg.norm(to_end, axis=-1), 1e-9)
+    dist = np.maximum(norm(to_end), 1e-9)
     axis = to_end / dist[..., None]
     along = np.clip((upper ** 2 - lower ** 2 + dist ** 2) / (2 * dist), -upper, upper)
     radius = np.sqrt(np.maximum(upper ** 2 - along ** 2, 0.0))
@@ -67,8 +67,8 @@ def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig(),
         return out
     stiffness = config.smooth_frames ** 4
     for root, mid, end in LIMBS:
-        upper = np.linalg.norm(out[:, :, mid] - out[:, :, root], axis=-1)          # (N, H)
-        lower = np.linalg.norm(out[:, :, end] - out[:, :, mid], axis=-1)
+        upper = norm(out[:, :, mid] - out[:, :, root])          # (N, H)
+        lower = norm(out[:, :, end] - out[:, :, mid])
         for _ in range(config.passes):
             path = out[:, :, mid]                                                  # (N, H, 3)
             # A middle joint that only follows a spike of its ends is not popping.

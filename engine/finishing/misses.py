@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..clip import MotionClip
+from ..geometry.rotations import norm
 from ..skeleton import HANDS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Contact, Storyboard
@@ -29,7 +30,7 @@ def hold_gaps(clip: MotionClip, storyboard: Storyboard) -> list[tuple[Contact, n
         h, o = storyboard.agent_index(c.agent), storyboard.object_index(c.object)
         frames = np.arange(c.start, c.end + 1)
         wrist = np.asarray(clip.joints[frames, h, HANDS[HAND_NAMES.index(c.hand)]], float)
-        out.append((c, frames, np.linalg.norm(wrist - clip.obj_anchors[frames, o, c.anchor], axis=-1)))
+        out.append((c, frames, norm(wrist - clip.obj_anchors[frames, o, c.anchor])))
     return out
 
 

@@ -36,6 +36,7 @@ from scipy.ndimage import gaussian_filter1d, minimum_filter1d, uniform_filter1d
 
 from ..camera import StoryboardCamera
 from ..geometry.polylines import resample_polyline
+from ..geometry.rotations import norm
 from ..skeleton import JOINT_INDEX
 from ..storyboard import Storyboard, Trajectory
 from .keys import key_frames, spread
@@ -89,7 +90,7 @@ class StrokePath(NamedTuple):
         else:
             points = resample_polyline(np.asarray(stroke.points, float), PATH_SAMPLES)
             ground = camera.unproject_to_height(points, height)[:, [0, 2]]
-        steps = np.linalg.norm(np.diff(ground, axis=0), axis=-1)
+        steps = norm(np.diff(ground, axis=0))
         return cls(points, np.concatenate([[0.0], np.cumsum(steps)]), stroke.floor is not None)
 
     def seen(self, pelvis: np.ndarray, camera: StoryboardCamera) -> np.ndarray:
@@ -105,7 +106,7 @@ class StrokePath(NamedTuple):
             hi = np.minimum(lo + 1, len(self.points) - 1)
             seg = self.points[hi] - self.points[lo]
             t = np.clip(np.sum((points - self.points[lo]) * seg, -1) / np.maximum(np.sum(seg * seg, -1), 1e-12), 0.0, 1.0)
-            dist = np.linalg.norm(self.points[lo] + t[:, None] * seg - points, axis=-1)
+            dist = norm(self.points[lo] + t[:, None] * seg - points)
             closer = dist < best
             best[closer] = dist[closer]
             out[closer] = (self.length[lo] + t * (self.length[hi] - self.length[lo]))[closer]
@@ -147,7 +148,7 @@ def follow_paths(joints: np.ndarray, storyboard: Storyboard, config: PathConfig 
                 holding = storyboard.holding(objects_only=True)[span, h].any(-1)
                 way = _stroke_timing(path, path.seen(pelvis, cam), span, keys, holding, fps, config)
             target = path.place(way, height, cam)
-            apart = np.linalg.norm(path.seen(target, cam) - path.seen(pelvis, cam), axis=-1, keepdims=True)
+            apart = norm(path.seen(target, cam) - path.seen(pelvis, cam), keepdims=True)
             off = np.clip(apart / config.tolerance - 1.0, 0.0, 1.0)   # a hand-drawn stroke wobbles; the walk should not
             move = target - pelvis
             if first:   # in depth, part of the way (all of it far off); in the sketch plane where it is off the stroke
@@ -179,7 +180,7 @@ def matched(points: np.ndarray, path: np.ndarray, most_step: int, to_end: bool =
     a motion that stopped short of the path's end is matched where it is."""
     if to_end:   # the last point reachable
         most_step = max(most_step, -(-(len(path) - 1) // max(len(points) - 1, 1)))
-    cost = np.linalg.norm(points[:, None] - path[None], axis=-1)            # (M, S)
+    cost = norm(points[:, None] - path[None])            # (M, S)
     total = np.empty_like(cost)
     total[0] = np.inf
     total[0, 0] = cost[0, 0]

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.ndimage import label, maximum_filter1d
 
 from ..body import BONES as BODY_BONES
+from ..geometry.rotations import norm
 from ..skeleton import (ANKLES, CHILDREN, FEET, HANDS, NUM_JOINTS, bone_lengths, forward_kinematics,
                         inverse_kinematics)
 from ..storyboard import Storyboard
@@ -59,7 +60,7 @@ def frame_pops(path: np.ndarray) -> np.ndarray:
     spike and the jump of the steps into or out of it beyond both of their neighbouring steps."""
     out = spike(path).max(axis=-1)
     if len(path) >= 4:
-        step = np.linalg.norm(np.diff(path, axis=0), axis=-1)                 # (N-1, J)
+        step = norm(np.diff(path, axis=0))                 # (N-1, J)
         jump = (step[1:-1] - np.maximum(step[:-2], step[2:])).max(axis=-1)    # step k+1: frames k+1, k+2
         out[1:-2] = np.maximum(out[1:-2], jump)
         out[2:-1] = np.maximum(out[2:-1], jump)
@@ -72,7 +73,7 @@ def held_joints(joints: np.ndarray, storyboard: Storyboard, still: float, floor:
     for k in storyboard.keyposes:
         held[k.frame, storyboard.agent_index(k.agent)] |= k.mask
     held[:, :, list(HANDS)] |= storyboard.holding()
-    step = np.linalg.norm(np.diff(joints, axis=0), axis=-1)                    # (N-1, H, 22)
+    step = norm(np.diff(joints, axis=0))                    # (N-1, H, 22)
     held[1:-1] |= (step[:-1] < still) & (step[1:] < still)
     low = joints[:, :, list(FEET), 1] < floor                                   # (N, H, 2)
     held[:, :, LEGS_END] |= np.concatenate([low, low], axis=-1)
@@ -91,7 +92,7 @@ def _restore_bones(joints: np.ndarray, lengths: np.ndarray, free: np.ndarray, it
     m = len(joints)
     for _ in range(iterations):
         bone = out[:, BONES] - out[:, BONE_PARENTS]                                     # (M, 21, 3)
-        length = np.maximum(np.linalg.norm(bone, axis=-1, keepdims=True), 1e-9)
+        length = np.maximum(norm(bone, keepdims=True), 1e-9)
         error = (1.0 - lengths[:, None] / length) * bone                                # too long by
         # Each joint's share of its bones' errors, in one product over all frames (a (22, 21)
         # product per frame took half the steadying's time).
@@ -111,10 +112,10 @@ def _repin_limbs(pose: np.ndarray, wanted: np.ndarray, held: np.ndarray) -> np.n
         at = held[:, end]
         if not at.any():
             continue
-        upper = np.linalg.norm(pose[at, mid] - pose[at, root], axis=-1)
-        lower = np.linalg.norm(pose[at, end] - pose[at, mid], axis=-1)
+        upper = norm(pose[at, mid] - pose[at, root])
+        lower = norm(pose[at, end] - pose[at, mid])
         target = wanted[at, end]
-        missed[at] |= np.linalg.norm(target - pose[at, root], axis=-1) > upper + lower
+        missed[at] |= norm(target - pose[at, root]) > upper + lower
         out[at, mid] = on_circle(pose[at, root], target, upper, lower, pose[at, mid])
         for child in CHILDREN[end]:   # a held foot keeps its place about the ankle, a free one its own
             about = np.where(held[at, child, None], wanted[at, child] - target, pose[at, child] - pose[at, end])

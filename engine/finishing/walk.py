@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import label
 
+from ..geometry.rotations import norm
 from ..skeleton import ANKLES, FEET, HIPS, KNEES
 from ..synth.trajectory import smootherstep
 from .blend import spike
@@ -29,7 +30,7 @@ STILL = 0.005   # m a frame: a foot on the floor moving less than this to and fr
 
 def _standing(goal: np.ndarray, config: FeetConfig) -> np.ndarray:
     """Frames (N,) at which a foot goal (N, 3) stands on the floor, still."""
-    step = np.linalg.norm(np.diff(goal, axis=0), axis=-1)
+    step = norm(np.diff(goal, axis=0))
     moving = np.concatenate([[0.0], step]) + np.concatenate([step, [0.0]])
     return (goal[:, 1] <= config.stance_height) & (moving < 2 * STILL)
 
@@ -71,7 +72,7 @@ def _walk(goals: list[np.ndarray], pose: np.ndarray, a: int, b: int, config: Fee
     config.walk_step of the pelvis' travel; None if that jolts a foot by more than config.walk_pop
     or leaves one out of its leg's reach."""
     pelvis = pose[:, 0]
-    travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pelvis[:, [0, 2]], axis=0), axis=-1))])
+    travel = np.concatenate([[0.0], np.cumsum(norm(np.diff(pelvis[:, [0, 2]], axis=0)))])
     if travel[-1] < config.min_step_m:   # the body stays: no walk (the feet's own steps stand)
         return None
     start, end = [g[a] for g in goals], [g[b] for g in goals]
@@ -82,11 +83,11 @@ def _walk(goals: list[np.ndarray], pose: np.ndarray, a: int, b: int, config: Fee
     if max(spike(f).max() for f in feet) > config.walk_pop:
         return None
     for side, foot in enumerate(feet):   # the body may lower by max_crouch to reach its plants
-        leg = (np.linalg.norm(pose[:, KNEES[side]] - pose[:, HIPS[side]], axis=-1)
-               + np.linalg.norm(pose[:, ANKLES[side]] - pose[:, KNEES[side]], axis=-1))
+        leg = (norm(pose[:, KNEES[side]] - pose[:, HIPS[side]])
+               + norm(pose[:, ANKLES[side]] - pose[:, KNEES[side]]))
         ankle = foot - (pose[:, FEET[side]] - pose[:, ANKLES[side]])
         hip = pose[:, HIPS[side]] - [0.0, config.max_crouch, 0.0]
-        if (np.linalg.norm(ankle - hip, axis=-1) > config.plant_reach * leg).any():
+        if (norm(ankle - hip) > config.plant_reach * leg).any():
             return None
     return feet
 

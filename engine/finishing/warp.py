@@ -26,6 +26,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from ..camera import StoryboardCamera
 from ..facing import towards_camera
+from ..geometry.rotations import norm
 from ..skeleton import ELBOWS, FEET, HANDS, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
@@ -99,10 +100,10 @@ def sketched_scales(offsets: np.ndarray, joints: np.ndarray, storyboard: Storybo
     pose = joints[[k.frame for k in mine]]                                        # (K, 22, 3)
     bone = pose[:, 1:] - pose[:, parents]
     seen = storyboard.camera.project(pose)
-    shown = (np.linalg.norm(seen[:, 1:] - seen[:, parents], axis=-1)
-             / np.maximum(np.linalg.norm(bone, axis=-1), 1e-9))                   # generated foreshortening
-    own = np.linalg.norm(offsets[1:], axis=-1)
-    ratio = np.linalg.norm(drawn[:, 1:] - drawn[:, parents], axis=-1) / np.maximum(own * shown, 1e-9)
+    shown = (norm(seen[:, 1:] - seen[:, parents])
+             / np.maximum(norm(bone), 1e-9))                   # generated foreshortening
+    own = norm(offsets[1:])
+    ratio = norm(drawn[:, 1:] - drawn[:, parents]) / np.maximum(own * shown, 1e-9)
     measures = placed & (shown >= MEASURING) & (own > 1e-6)
     scales = {}
     for part, (_, measured) in BODY_PARTS.items():
@@ -174,7 +175,7 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     for _ in range(config.bone_iterations):   # Gauss-Newton on the bone lengths
         points = origin[sketched] + (depth[sketched] + x)[:, None] * back
         bone = points[bone_child] - points[bone_parent]
-        length = np.maximum(np.linalg.norm(bone, axis=-1), 1e-9)
+        length = np.maximum(norm(bone), 1e-9)
         slope = config.bone_weight * (bone @ back) / length                     # d length / d x_child
         jac = np.concatenate([a, slope[:, None] * (eye[bone_child] - eye[bone_parent])])
         res = np.concatenate([a @ x - b, config.bone_weight * (length - bone_lengths)])
@@ -222,7 +223,7 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
         if not keys:
             continue
         frames = [k.frame for k in keys]
-        lengths = np.linalg.norm(offsets[h], axis=-1)
+        lengths = norm(offsets[h])
         posed = np.stack([solve_keypose(joints[k.frame, h], k.points, k.mask, storyboard.camera, lengths, config, k.depth)
                           for k in keys])                                        # (K, 22, 3)
         body = joints[:, h] - joints[:, h, PELVIS:PELVIS + 1]                     # (N, 22, 3) from the pelvis

@@ -15,6 +15,17 @@ def normalize(v: np.ndarray, axis: int = -1) -> np.ndarray:
     return v / np.maximum(np.sqrt(np.sum(v * v, axis=axis, keepdims=True)), EPS)
 
 
+def norm(v: np.ndarray, keepdims: bool = False) -> np.ndarray:
+    """Euclidean length of (..., D) vectors -> (...) (or (..., 1)), its squares summed written out:
+    equal to np.linalg.norm(v, axis=-1) to the bit, several times faster on the finishing's
+    batches (the norm reduces over a short last axis slowly)."""
+    squares = v[..., 0] * v[..., 0]
+    for i in range(1, v.shape[-1]):
+        squares = squares + v[..., i] * v[..., i]
+    out = np.sqrt(squares)
+    return out[..., None] if keepdims else out
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """np.cross of (..., 3) vectors, written out: several times faster on the small batches of
     the finishing's kinematics (np.cross moves axes about for every call)."""
