@@ -1,13 +1,21 @@
 import numpy as np
 import pytest
 
-from engine.geometry.rotations import _kabsch_svd, axis_angle_to_matrix, cross, kabsch
+from engine.geometry.rotations import _kabsch_svd, axis_angle_to_matrix, cross, kabsch, norm
 from engine.skeleton import CHILDREN, REST_OFFSETS
 
 
 def test_cross_is_numpys():
     a, b = np.random.default_rng(0).normal(size=(2, 5, 7, 3))
     np.testing.assert_allclose(cross(a, b), np.cross(a, b), atol=1e-15)
+
+
+def test_norm_is_numpys_to_the_bit():
+    rng = np.random.default_rng(0)
+    for shape in [(3,), (120, 2), (98, 21, 3)]:
+        v = rng.normal(size=shape)
+        assert np.array_equal(norm(v), np.linalg.norm(v, axis=-1))
+        assert np.array_equal(norm(v, keepdims=True), np.linalg.norm(v, axis=-1, keepdims=True))
 
 
 @pytest.mark.parametrize("joint", [0, 9])   # the pelvis's and spine3's children: nearly in one plane
