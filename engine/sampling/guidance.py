@@ -67,36 +67,44 @@ class EnergyGuidance:
         Raw-space terms reach the latent through B_rho (exact autograd when there is none)."""
         cfg = self.config
         energy, grad = z0.new_zeros(z0.shape[0]), torch.zeros_like(z0)
+        objective, leaves = 0.0, []                  # differentiated in one backward pass
         with torch.enable_grad():
             if cfg.use_energy:
                 if self.surrogate is not None:   # stop at the motion (no graph through the decoder), route through B_rho
                     with torch.no_grad():
                         motion = self.decode(z0)
                     motion = {k: v.detach().requires_grad_(True) for k, v in motion.items()}
+                    leaves = list(motion.values())
                 else:
-                    zg = z0.detach().requires_grad_(True)
-                    motion = self.decode(zg)
+                    leaves = [z0.detach().requires_grad_(True)]
+                    motion = self.decode(leaves[0])
                 total, terms = total_energy(self.storyboard_view(motion), self.energies, t, self.weights,
                                             self.enabled, occupancy)
-                if self.surrogate is None:
-                    grad = grad + torch.autograd.grad(total.sum(), zg)[0]
-                else:
-                    raw = torch.autograd.grad(total.sum(), list(motion.values()), allow_unused=True)
-                    raw = {k: torch.zeros_like(v) if g is None else g for (k, v), g in zip(motion.items(), raw)}
-                    with torch.no_grad():   # a gradient to follow, not to differentiate
-                        routed = self.surrogate(raw)
-                    grad = grad + routed
-                    if cfg.check_surrogate:
-                        exact = exact_latent_gradient(self.vqvae.decode, z0, flatten_motion(raw))
-                        values["surrogate_cosine"] = float(
-                            torch.nn.functional.cosine_similarity(routed.flatten(1), exact.flatten(1), 1).mean())
-                energy = energy + total.detach()
-                values.update({k: float(v.detach().mean()) for k, v in terms.items()})
+                objective = total.sum()
             if cfg.use_latent:
                 zl = z0.detach().requires_grad_(True)
                 e_lat = cfg.latent_weight * latent_energy(self.latent_head, zl, self.s2d, self.present)
-                grad = grad + torch.autograd.grad(e_lat.sum(), zl)[0]
-                energy = energy + e_lat.detach()
-                values["latent"] = float(e_lat.detach().mean())
+                objective = objective + e_lat.sum()
+                leaves.append(zl)
+            grads = [torch.zeros_like(v) if g is None else g
+                     for v, g in zip(leaves, torch.autograd.grad(objective, leaves, allow_unused=True))]
+        if cfg.use_energy:
+            if self.surrogate is None:
+                grad = grad + grads[0]
+            else:
+                raw = dict(zip(motion, grads))
+                with torch.no_grad():   # a gradient to follow, not to differentiate
+                    routed = self.surrogate(raw)
+                grad = grad + routed
+                if cfg.check_surrogate:
+                    exact = exact_latent_gradient(self.vqvae.decode, z0, flatten_motion(raw))
+                    values["surrogate_cosine"] = float(
+                        torch.nn.functional.cosine_similarity(routed.flatten(1), exact.flatten(1), 1).mean())
+            energy = energy + total.detach()
+            values.update({k: float(v.detach().mean()) for k, v in terms.items()})
+        if cfg.use_latent:
+            grad = grad + grads[-1]
+            energy = energy + e_lat.detach()
+            values["latent"] = float(e_lat.detach().mean())
         values["total"] = float(energy.mean())
         return energy, grad
