@@ -4,7 +4,8 @@
     view = request.for_model(stride)               # the sampler: the model's rate, padded, its controls
 
 The storyboard stays as drawn (its frames, its frame rate; only shared or crossed grips are
-mended: engine.grips): finishing and the output use it. The networks animate at MODEL_FPS in fixed
+mended, engine.grips, and a figure posed from a template facing the other way keeps only its
+hands, feet and head, engine.mirrored): finishing and the output use it. The networks animate at MODEL_FPS in fixed
 slots (engine.models.slots); `for_model` retimes the storyboard to that rate, pads it to the
 decoder's frame stride and builds its controls once, for the network's conditioning and the
 guidance energies alike.
@@ -18,6 +19,7 @@ import numpy as np
 
 from .controls import Controls, build_controls
 from .grips import with_grips_fitted
+from .mirrored import without_mirrored_template
 from .models.slots import MODEL_FPS, NUM_HUMANS, NUM_OBJECTS, fixed_controls
 from .sampling.config import SamplerConfig, SamplerError
 from .storyboard import Storyboard
@@ -53,7 +55,7 @@ class Request:
         if len(storyboard.agents) > NUM_HUMANS or len(storyboard.objects) > NUM_OBJECTS:
             raise SamplerError(f"the model animates at most {NUM_HUMANS} people and {NUM_OBJECTS} object; the "
                                f"storyboard has {len(storyboard.agents)} people and {len(storyboard.objects)} objects")
-        return cls(with_grips_fitted(storyboard), config)
+        return cls(without_mirrored_template(with_grips_fitted(storyboard)), config)
 
     @property
     def method(self) -> str:
