@@ -16,7 +16,8 @@ that keep each person's bone lengths:
    people's legs otherwise (held.py), and the arms reaching its grips (or the partner's hand)
    over every contact span (contacts.py); a holder the grip is beyond arm's reach of steps
    towards it first, before the feet are planted (held.py), and a holder the grips are below the
-   reach of crouches to them (crouch.py); for an object the storyboard gives
+   reach of crouches and leans to them (crouch.py): a box let go of is put down, not dropped;
+   for an object the storyboard gives
    no contact, the holds are the generated motion's (inferred.py); hands out of a hold pushed
    out of the objects they sink into (clearance.py);
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their

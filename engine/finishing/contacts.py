@@ -30,7 +30,7 @@ class ContactConfig:
     DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "most_handover_frames", "lift_frames", "smooth_sigma",
                                             "reach_smoothing", "frames_per_metre", "swivel_sigma", "clear_frames",
                                             "sunk_frames", "held_clear_frames", "crouch_frames_per_metre",
-                                            "crouch_sigma")
+                                            "lean_frames_per_radian", "crouch_sigma", "lean_sigma")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
     sunk_frames: int = 18          # frames before (after) a span within which a hand inside the object holds on
     handover_pop: float = 0.02     # m a grip may spike where a held object eases out the turn that a hand
@@ -66,7 +66,12 @@ class ContactConfig:
                                    # reach (crouch.py; 2 cm a frame at 20 fps: at 3, 20 artist-style
                                    # storyboards' largest pops within 5 cm 15 -> 14, the worst 6.8 -> 7.4 cm) ...
     crouch_sigma: float = 1.5      # ... smoothed over this many frames ...
-    lowest_squat: float = 0.7      # ... the pelvis no lower than this share of the legs' length
+    lean_sigma: float = 6.0        # frames over which a holder leans forward for what a squat leaves (at 4,
+                                   # 20 artist-style storyboards' pops within 5 cm 15 -> 14) ...
+    lean_frames_per_radian: float = 38.2   # ... upright at its keys, straightening at most a radian in this many
+                                   # frames (1.5 degrees a frame; at 3, pops within 5 cm 16 -> 14 of 20) ...
+    lowest_squat: float = 0.7      # ... the pelvis no lower than this share of the legs' length ...
+    most_lean: float = 65.0        # ... nor the trunk further than this from upright (degrees)
 
 
 def anchor_table(storyboard: Storyboard) -> np.ndarray:

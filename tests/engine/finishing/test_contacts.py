@@ -200,7 +200,7 @@ def test_a_held_object_is_picked_up_and_lands_where_it_was_sketched(scenario):
     sb, joints, pose = scrambled(scenario, 2)   # hands swung off the grips: a fit to them would miss
     held_frames = np.flatnonzero([any(c.start <= f <= c.end for c in sb.contacts if c.object)
                                   for f in range(sb.length)])
-    assert held_frames[-1] < sb.length - 15   # time to land: a drop from 1 m takes 9 frames
+    assert held_frames[-1] < sb.length - 15   # time to slide to its landing place
     before, after = slice(0, held_frames[0]), slice(-5, None)
     held = hold_object(joints, pose, sb)
     true = synthesize(scenario, 2, fps=20).obj_pose[..., :3]
@@ -241,13 +241,25 @@ def test_a_few_frames_without_a_hold_are_the_artists_not_a_lift_or_a_drop():
     held = hold_object(joints, pose, sb)[:, 0, :3]
     assert np.ptp(held[:, 1]) < 1e-6            # in the hands all along: no lift, no 11 cm drop
     assert np.abs(np.diff(held, axis=0)).max() < 0.03
-    sb.contacts = holds((3, 15), (26, 36))      # a gap of ten frames: let go, it falls
+    sb.contacts = holds((3, 15), (26, 36))      # a gap of ten frames: put down and picked up again
     assert hold_object(joints, pose, sb)[20, 0, 1] < held[20, 1] - 0.1
     floor = sb.camera.project(np.array([1.5, ObjectSpec("box").size[1] / 2, 0.0]))
     sb.contacts = holds((3, 15), (19, 36))      # keyed on the floor 1.5 m away at frame 0: it lies there
     sb.object_keys = [ObjectKey("box", 0, floor + np.array([[-0.2, -0.15], [0.2, -0.15], [0.2, 0.15], [-0.2, 0.15]]))]
     on_floor = hold_object(joints, pose, sb)[:4, 0, :3]
     np.testing.assert_allclose(on_floor, np.broadcast_to([1.5, 0.0, 0.0], (4, 3)), atol=0.02)
+
+
+def test_a_box_let_go_of_is_put_down_by_the_hands_not_dropped():
+    sb, joints = one_person(60)    # carried at the hands' height, let go of at frame 34
+    held = hold_object(joints, np.zeros((len(joints), 1, 7)), sb)[:, 0, :3]
+    config = ContactConfig()
+    carried = held[34 - config.lift_frames, 1]
+    assert carried > 0.5 and held[34, 1] == config.rest_height     # on the ground as the last hand lets go
+    np.testing.assert_allclose(held[35:], np.broadcast_to(held[34], (len(held) - 35, 3)))   # and there it stays
+    lowering = np.diff(held[34 - config.lift_frames:35, 1])
+    assert (lowering <= 1e-12).all() and -lowering.max() < carried / 3   # eased down, never up
+    assert np.abs(np.diff(held[:34 - config.lift_frames, 1])).max() < 1e-6   # carried level before
 
 
 def test_one_holder_turns_the_object_with_their_chest_not_their_wrists():

@@ -1,10 +1,11 @@
-"""Holders crouch to grips below their reach (crouch.py): a person standing tall over a box on
-the floor lowers towards its grips while holding it, as low as a squat goes, the feet staying
-where they stand, every bone keeping its length, smoothly, and not at a key frame."""
+"""Holders crouch and lean to grips below their reach (crouch.py): a person standing tall over a
+box on the floor lowers towards its grips while holding it, as low as a squat goes, and leans
+forward for the rest, the feet staying where they stand, every bone keeping its length, smoothly,
+not at a key frame, and nothing going deeper into the box."""
 import numpy as np
 
 from engine.finishing.contacts import ContactConfig, arm_lengths, object_anchors
-from engine.finishing.crouch import _crouched, _depth, crouch_to_grips
+from engine.finishing.crouch import _crouched, _depth, _lean, _leaned, _shortfall, crouch_to_grips
 from engine.finishing.limbs import DEEPER
 from engine.finishing.feet import reach_with_leg
 from engine.objects import ObjectSpec
@@ -82,3 +83,40 @@ def test_a_crouch_takes_no_knee_into_the_box():
     objects = (pose, [o.spec for o in sb.objects])
     assert (_depth(out[:, 0], objects) <= _depth(joints[:, 0], objects) + DEEPER + 1e-9).all()
     assert _depth(_crouched(joints[:, 0], np.full(N, 0.35)), objects).max() > 0.03   # it would have
+
+
+def trunk_tilt(joints: np.ndarray) -> np.ndarray:
+    """Degrees (N,) of one person's pelvis-to-shoulders line from upright; joints (N, 22, 3)."""
+    trunk = joints[:, list(SHOULDERS)].mean(1) - joints[:, 0]
+    return np.degrees(np.arccos(trunk[:, 1] / np.linalg.norm(trunk, axis=-1)))
+
+
+def test_what_a_squat_leaves_out_of_reach_a_holder_leans_forward_for():
+    sb, joints, pose = standing_over_a_box()
+    config = ContactConfig()
+    squat = crouch_to_grips(joints, pose, sb, ContactConfig(most_lean=0.0))
+    out = crouch_to_grips(joints, pose, sb, config)
+    middle = slice(HOLD[0] + 3, HOLD[1] - 2)
+    tilt = trunk_tilt(out[:, 0])
+    assert (tilt[middle] > trunk_tilt(squat[:, 0])[middle] + 20).all() and tilt.max() <= config.most_lean + 1e-6
+    grip = object_anchors(pose, sb)[:, 0, [2, 0]]
+    reach = config.reach * arm_lengths(out)[:, 0]
+    assert (np.linalg.norm(grip - out[:, 0, list(SHOULDERS)], axis=-1)[middle] < reach[middle] + 0.02).all()
+    legs = [0, *HIPS, *KNEES, *ANKLES, *FEET]
+    np.testing.assert_allclose(out[:, 0, legs], squat[:, 0, legs])           # the hips bend, the legs stay
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(joints), atol=1e-9)
+    assert np.abs(np.diff(tilt, 2)).max() < 1.0                                # degrees a frame per frame: eased
+
+
+def test_a_lean_takes_no_chest_into_the_box():
+    """A tall crate close in front: leaning as far as its grips ask would put the chest into it."""
+    sb, joints, pose = standing_over_a_box(ahead=0.35)
+    sb.objects = [SceneObject("box", ObjectSpec("box", (0.4, 0.8, 0.3)))]
+    config = ContactConfig()
+    squat = crouch_to_grips(joints, pose, sb, ContactConfig(most_lean=0.0))
+    out = crouch_to_grips(joints, pose, sb, config)
+    objects = (pose, [o.spec for o in sb.objects])
+    assert (_depth(out[:, 0], objects) <= _depth(squat[:, 0], objects) + DEEPER + 1e-9).all()
+    asked = _lean(squat, _shortfall(squat, object_anchors(pose, sb), sb, config), config)[:, 0]
+    assert _depth(_leaned(squat[:, 0], asked), objects).max() > _depth(squat[:, 0], objects).max() + 0.02   # it would have
+    assert 20 < trunk_tilt(out[:, 0]).max() < np.degrees(asked.max()) - 5   # leaning less
