@@ -50,15 +50,19 @@ def _crouched(poses: np.ndarray, drop: np.ndarray) -> np.ndarray:
     return out
 
 
-def _depth(poses: np.ndarray, objects: tuple[np.ndarray, list]) -> np.ndarray:
+def _depth(poses: np.ndarray, objects: tuple[np.ndarray, list], partners: np.ndarray | None = None) -> np.ndarray:
     """How deep (M,) the deepest body sphere but the arms' of poses (M, 22, 3) is in any object
-    (objects: poses (M, O, 7), specs)."""
+    (objects: poses (M, O, 7), specs) or in the body of another person (partners (M, P, 22, 3),
+    their spheres but the arms' likewise)."""
     points, radii = body_points(poses)
-    points = points[:, BODY_SPHERES]
+    points, radii = points[:, BODY_SPHERES], radii[BODY_SPHERES]
     pose, specs = objects
-    depth = [spec.penetration_local(world_to_local(points, pose[:, o]), radii[BODY_SPHERES]).max(-1)
-             for o, spec in enumerate(specs)]
-    return np.max(depth, axis=0)
+    depth = [spec.penetration_local(world_to_local(points, pose[:, o]), radii).max(-1) for o, spec in enumerate(specs)]
+    if partners is not None and partners.shape[1]:
+        others = body_points(partners)[0][:, :, BODY_SPHERES]                         # (M, P, S, 3)
+        apart = norm(points[:, None, :, None] - others[:, :, None])                  # (M, P, S, S)
+        depth.append((radii[:, None] + radii[None] - apart).max(axis=(1, 2, 3)))
+    return np.max(depth, axis=0) if depth else np.zeros(len(poses))
 
 
 def _leaned(poses: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -125,14 +129,16 @@ def _paced(amount: np.ndarray, rate: float, sigma: float, storyboard: Storyboard
 
 
 def _no_deeper(poses: np.ndarray, amount: np.ndarray, move, objects: tuple[np.ndarray, list],
-               rate: float) -> np.ndarray:
+               partners: np.ndarray, rate: float) -> np.ndarray:
     """One person's poses (N, 22, 3) moved by move(poses, amount) (amount (N,) >= 0), where that
-    takes a body sphere but the arms' deeper into an object (objects: poses (N, O, 7), specs) by
-    half or a quarter of it, else not at all, the cut paced at `rate` a frame either side."""
+    takes a body sphere but the arms' deeper into an object (objects: poses (N, O, 7), specs) or
+    into the partners' bodies (partners (N, P, 22, 3)) by half or a quarter of it, else not at
+    all, the cut paced at `rate` a frame either side."""
     out, at = poses.copy(), np.flatnonzero(amount > 1e-4)
     if not len(at):
         return out
-    still = _depth(poses[at], (objects[0][at], objects[1]))
+    # Clear of them, it may come up to them.
+    still = np.maximum(_depth(poses[at], (objects[0][at], objects[1]), partners[at]), 0.0)
     allowed, left = amount[at].copy(), np.arange(len(at))       # left: the frames it takes deeper
     for share in (1.0, 0.5, 0.25):
         f = at[left]
@@ -140,7 +146,7 @@ def _no_deeper(poses: np.ndarray, amount: np.ndarray, move, objects: tuple[np.nd
         if share == 1.0:
             out[at] = moved
         allowed[left] = share * amount[f]
-        left = left[_depth(moved, (objects[0][f], objects[1])) > still[left] + DEEPER]
+        left = left[_depth(moved, (objects[0][f], objects[1]), partners[f]) > still[left] + DEEPER]
         if not len(left):
             break
     allowed[left] = 0.0
@@ -149,6 +155,17 @@ def _no_deeper(poses: np.ndarray, amount: np.ndarray, move, objects: tuple[np.nd
         limit[at] = allowed
         amount = np.minimum(amount, _cone(limit[:, None], rate, up=False)[:, 0])
         out[at] = move(poses[at], amount[at])
+    return out
+
+
+def _each_no_deeper(joints: np.ndarray, amount: np.ndarray, move, objects: tuple[np.ndarray, list],
+                    rate: float) -> np.ndarray:
+    """joints (N, H, 22, 3) with each person in turn moved by move(poses, amount[:, h]) (_no_deeper),
+    no deeper into the people moved before them either (two people leaning over a box from either
+    side put their heads 14 cm into each other)."""
+    out = joints.copy()
+    for a in range(joints.shape[1]):
+        out[:, a] = _no_deeper(joints[:, a], amount[:, a], move, objects, np.delete(out, a, axis=1), rate)
     return out
 
 
@@ -161,7 +178,7 @@ def crouch_to_grips(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyb
     warp placed those poses), and never taking a body sphere but the arms' deeper into an object
     (a knee went 2 cm further into a box put down): there, only as deep as that allows."""
     joints = np.asarray(joints, float)
-    h, anchors = joints.shape[1], object_anchors(obj_pose, storyboard)
+    anchors = object_anchors(obj_pose, storyboard)
     short = _shortfall(joints, anchors, storyboard, config)
     if not short.any():
         return joints
@@ -170,7 +187,7 @@ def crouch_to_grips(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyb
     # of 40 cm took three frames).
     rate = 1.0 / config.crouch_frames_per_metre
     drop = _paced(_squat(joints, short, config), rate, config.crouch_sigma, storyboard)
-    out = np.stack([_no_deeper(joints[:, a], drop[:, a], _crouched, objects, rate) for a in range(h)], 1)
+    out = _each_no_deeper(joints, drop, _crouched, objects, rate)
     # A lean eases in and out, the way a body bends (paced like the squat, at a fixed rate, it bent
     # over for two seconds: 20 artist-style storyboards' pops within 5 cm 16 -> 13)
     lean = _lean(out, _shortfall(out, anchors, storyboard, config), config)
@@ -178,4 +195,4 @@ def crouch_to_grips(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyb
     lean = gaussian_filter1d(maximum_filter1d(lean, wide, axis=0), config.lean_sigma, axis=0, mode="nearest")
     rate = 1.0 / config.lean_frames_per_radian
     lean = _paced(lean, rate, config.crouch_sigma, storyboard)
-    return np.stack([_no_deeper(out[:, a], lean[:, a], _leaned, objects, rate) for a in range(h)], 1)
+    return _each_no_deeper(out, lean, _leaned, objects, rate)

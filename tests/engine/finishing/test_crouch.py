@@ -11,7 +11,7 @@ from engine.finishing.feet import reach_with_leg
 from engine.objects import ObjectSpec
 from engine.skeleton import ANKLES, FEET, HIPS, KNEES, SHOULDERS, bone_lengths, rest_pose
 from engine.storyboard import Agent, Contact, Keypose, SceneObject, Storyboard
-from engine.synth.reach import UP
+from engine.synth.reach import UP, yaw_matrix
 
 N, HOLD = 80, (30, 50)
 
@@ -120,3 +120,25 @@ def test_a_lean_takes_no_chest_into_the_box():
     asked = _lean(squat, _shortfall(squat, object_anchors(pose, sb), sb, config), config)[:, 0]
     assert _depth(_leaned(squat[:, 0], asked), objects).max() > _depth(squat[:, 0], objects).max() + 0.02   # it would have
     assert 20 < trunk_tilt(out[:, 0]).max() < np.degrees(asked.max()) - 5   # leaning less
+
+
+def test_two_holders_lean_no_deeper_into_each_other():
+    """Two carriers face each other over a box on the floor, 60 cm apart: leaning as far as the
+    grips ask, their heads would meet."""
+    sb, joints, pose = standing_over_a_box(ahead=0.3)
+    sb.agents.append(Agent("B"))
+    sb.contacts += [Contact("B", "left", *HOLD, "box", 0), Contact("B", "right", *HOLD, "box", 2)]
+    centre = np.array([0.0, 0.0, 0.3])
+    facing_a = (joints[:, 0] - centre) @ yaw_matrix(np.array(np.pi)).T + centre    # half a turn about the box
+    both = np.stack([joints[:, 0], facing_a], 1)
+    squat = crouch_to_grips(both, pose, sb, ContactConfig(most_lean=0.0))
+    out = crouch_to_grips(both, pose, sb)
+    nothing = (pose[:, :0], [])
+
+    def into_each_other(people):
+        return np.maximum(_depth(people[:, 0], nothing, people[:, 1:]), 0.0)
+
+    asked = np.stack([_leaned(squat[:, a], np.full(N, 1.0)) for a in range(2)], 1)
+    assert into_each_other(asked).max() > into_each_other(squat).max() + 0.1          # they would have
+    assert (into_each_other(out) <= into_each_other(squat) + DEEPER + 1e-9).all()
+    assert trunk_tilt(out[:, 0]).max() > 20                                            # the first still leans
