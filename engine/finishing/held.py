@@ -86,22 +86,27 @@ def _fit_position(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray, yaw: 
     return (np.sum(w * wrists, axis=1) - turned) / count
 
 
-def _clear_of_holders(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints: np.ndarray,
-                      holding: np.ndarray, iterations: int, sigma: float) -> np.ndarray:
+def _clear_of_people(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints: np.ndarray,
+                     holding: np.ndarray, iterations: int, sigma: float) -> np.ndarray:
     """Push a held object (pos (N, 3), yaw (N,)) out in front of each holder (joints
-    (N, H, 22, 3), holding (N, H) bool) until no body sphere but the arms' is inside it: decoded
-    hands often hang by the hips, and an object fitted to them would sit in the pelvis. Pushes
-    from holders facing each other cancel (there is no room between them). The push eases over
-    `sigma` frames as an envelope (blend.eased_push): pushed at one frame or two, the held path's
-    smoothing left a box 11 cm inside a chest. Returns pos (N, 3)."""
+    (N, H, 22, 3), holding (N, H) bool), and from anyone else towards the holders, until no body sphere but the
+    arms' is inside it: decoded hands often hang by the hips, and an object fitted to them would
+    sit in the pelvis (and a box handed over sat 17 cm into the giver's pelvis after the giver let
+    go). Pushes from holders facing each other cancel (there is no room between them). The push
+    eases over `sigma` frames as an envelope (blend.eased_push): pushed at one frame or two, the
+    held path's smoothing left a box 11 cm inside a chest. Returns pos (N, 3)."""
     n = len(pos)
     points, radii = _body_spheres(joints)
-    away = forward_of(joints)                                           # (N, H, 3)
+    pelvis = joints[:, :, 0]
+    holders = np.sum(holding[..., None] * pelvis, axis=1) / np.maximum(holding.sum(axis=1), 1)[:, None]   # (N, 3)
+    # In front of a holder; from anyone else towards the holders, in whose hands it is.
+    away = np.where(holding[..., None], forward_of(joints), normalize((holders[:, None] - pelvis) * (1.0, 0.0, 1.0)))
+    held = holding.any(axis=1, keepdims=True)                          # (N, 1): pushed only while held
     pushed = pos
     for _ in range(iterations):
         local = world_to_local(points.reshape(n, -1, 3), pose_array(pushed, yaw)).reshape(points.shape)
         depth = np.max(spec.penetration_local(local, radii), axis=-1)  # (N, H)
-        pushed = pushed + np.sum(np.where(holding, depth, 0)[..., None] * away, axis=1)
+        pushed = pushed + np.sum(np.where(held, depth, 0)[..., None] * away, axis=1)
     return pos + eased_push(pushed - pos, sigma) if np.any(pushed != pos) else pos
 
 
@@ -277,7 +282,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     fit_pos = _fit_position(wrists, grips, held, fit_yaw)
     fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
     fit_pos = _within_reach_across(fit_pos, fit_yaw, joints, grips, held, config)
-    fit_pos = _clear_of_holders(fit_pos, fit_yaw, spec, joints, holding, config.clear_iterations,
+    fit_pos = _clear_of_people(fit_pos, fit_yaw, spec, joints, holding, config.clear_iterations,
                                 config.held_clear_frames)
     fit_yaw = _eased_handovers(np.unwrap(fit_yaw), held, grips, config)
 
@@ -378,7 +383,7 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
     from the object lunged a carrier 76 cm to it and back in a third of a second). A holder
     whose body is inside an object that others hold too steps back out of it the same way: two
     carriers facing each other across a box, drawn closer than the box is deep, had it 5 cm
-    inside a chest, and pushes from the two of them on the box cancel (_clear_of_holders).
+    inside a chest, and pushes from the two of them on the box cancel (_clear_of_people).
     joints (N, H, 22, 3), obj_pose (N, O, 7) decoded -> joints (N, H, 22, 3)."""
     joints = np.asarray(joints, float).copy()
     n, h = joints.shape[:2]

@@ -262,6 +262,21 @@ def test_a_box_let_go_of_is_put_down_by_the_hands_not_dropped():
     assert np.abs(np.diff(held[:34 - config.lift_frames, 1])).max() < 1e-6   # carried level before
 
 
+def test_a_box_handed_over_is_pushed_out_of_the_giver_who_let_go_of_it():
+    n = 20
+    sb = Storyboard(length=n, agents=[Agent("A"), Agent("B")], objects=[SceneObject("box", ObjectSpec("box"))],
+                    contacts=[Contact("B", "left", 0, n - 1, "box", 0), Contact("B", "right", 0, n - 1, "box", 2)])
+    giver = rest_pose()
+    taker = (giver - giver[0]) @ yaw_matrix(np.array(np.pi)).T + giver[0] + (0.0, 0.0, 0.6)   # facing A
+    taker[list(HANDS)] = giver[0] + (np.array([[0.2, 0.0, 0.0], [-0.2, 0.0, 0.0]]))          # at A's pelvis
+    joints = np.tile(np.stack([giver, taker]), (n, 1, 1, 1))
+    held = hold_object(joints, np.zeros((n, 1, 7)), sb)
+    points, radii = body_points(joints[:, :1])
+    local = world_to_local(points[:, 0][:, BODY_SPHERES], held[:, 0])
+    assert ObjectSpec("box").penetration_local(local, radii[BODY_SPHERES]).max() < 0.01   # out of the giver
+    assert held[0, 0, 2] > giver[0, 2] + 0.1                                               # towards the taker
+
+
 def test_one_holder_turns_the_object_with_their_chest_not_their_wrists():
     sb, joints = one_person()
     wrists = list(HANDS)
