@@ -43,6 +43,7 @@ from .clip import ClipError, MotionClip
 from .controls import build_controls
 from .geometry.rotations import matrix_to_quat, quat_to_matrix
 from .io.resample import resample_clip
+from .mirrored import without_mirrored_template
 from .models.slots import MODEL_FPS, NUM_HUMANS, fixed_controls
 from .objects import NUM_ANCHORS
 from .sketchify import SketchifyConfig, sketchify
@@ -155,7 +156,8 @@ class StoryboardWindows(Dataset):
         window = canonicalize(window, yaw)
         storyboard = sketchify(window, keyframes, noise, sketch_seed, config=cfg.sketch)
         if cfg.artist_share > 0 and rng.random() < cfg.artist_share:   # no draw at 0: streams unchanged
-            storyboard = redrawn(storyboard, sketch_seed, posed=bool(rng.integers(2)))
+            # Mended as a request mends it: the model learns from what it will be given.
+            storyboard = without_mirrored_template(redrawn(storyboard, sketch_seed, posed=bool(rng.integers(2))))
         thumbnail = np.random.default_rng([cfg.seed, self.epoch, index, 2])     # its own stream too
         if cfg.sparse_share > 0 and thumbnail.random() < cfg.sparse_share:
             storyboard = sparse(storyboard, with_end=bool(thumbnail.integers(2)))

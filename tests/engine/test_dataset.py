@@ -8,7 +8,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from engine.clip import ClipError, MotionClip
-from engine.controls import Controls
+from engine.controls import Controls, build_controls
 from engine.dataset import HELD_OUT_SALSA_TAKES, DatasetConfig, StoryboardWindows, canonicalize, split_files
 from engine.geometry.rotations import sixd_to_matrix
 from engine.io.resample import resample_clip
@@ -191,3 +191,27 @@ def test_a_sparse_storyboard_keeps_the_ends_and_leaves_the_middle_to_the_text(fi
     kinds = {int(thumbs[i]["kp_mask"].flatten(1).any(1).sum()) for i in range(len(thumbs))}
     assert kinds == {1, 2}                                   # start only, or start and end
     assert torch.equal(full[4]["kp_mask"], StoryboardWindows(files, DatasetConfig(seed=3, sparse_share=0.0))[4]["kp_mask"])
+
+
+def test_artist_style_sketches_are_mended_as_a_request_mends_them(files, monkeypatch):
+    """A posed sketch whose template faces the other way reaches the model as generation gives it:
+    its template joints unplaced (engine.mirrored)."""
+    import engine.dataset as dataset
+    from engine.mirrored import TEMPLATE, TEMPLATE_JOINTS, crossed_over
+    from engine.skeleton import MIRROR
+
+    crossed = []
+
+    def facing_away(storyboard, seed, posed=False):      # the template's left and right swapped at every key
+        for k in storyboard.keyposes:
+            k.mask[:] = True
+            k.points[TEMPLATE_JOINTS] = k.points[np.asarray(MIRROR)[TEMPLATE_JOINTS]]
+        crossed.extend((k.agent, k.frame) for k in storyboard.keyposes if crossed_over(k))
+        return storyboard
+
+    seen = []
+    monkeypatch.setattr(dataset, "redrawn", facing_away)
+    monkeypatch.setattr(dataset, "build_controls", lambda sb: seen.append(sb) or build_controls(sb))
+    StoryboardWindows(files[:1], DatasetConfig(noise_range=(0.0, 0.0), artist_share=1.0))[0]
+    assert crossed and seen
+    assert not any((k.mask & TEMPLATE).any() for k in seen[0].keyposes if (k.agent, k.frame) in crossed)
