@@ -15,7 +15,8 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from ..body import body_points
 from ..geometry.rotations import axis_angle_to_matrix, norm, normalize
 from ..objects import world_to_local
-from ..skeleton import ANKLES, FEET, HIPS, JOINT_INDEX, KNEES, NUM_JOINTS, PARENTS, SHOULDERS
+from ..rig import SUBTREE
+from ..skeleton import ANKLES, FEET, HIPS, JOINT_INDEX, KNEES, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from ..synth.reach import UP
@@ -25,10 +26,8 @@ from .held import BODY_SPHERES
 from .keys import key_frames
 from .limbs import DEEPER
 
-UPPER_BODY = [JOINT_INDEX["spine1"]]   # the spine and all it carries: what a lean pitches forward
-for _joint in range(NUM_JOINTS):
-    if PARENTS[_joint] in UPPER_BODY:
-        UPPER_BODY.append(_joint)
+
+UPPER_BODY = SUBTREE[JOINT_INDEX["spine1"]]   # the spine and all it carries: what a lean pitches forward
 
 
 def _cone(values: np.ndarray, rate: float, up: bool) -> np.ndarray:
@@ -161,7 +160,7 @@ def _no_deeper(poses: np.ndarray, amount: np.ndarray, move, objects: tuple[np.nd
 def _each_no_deeper(joints: np.ndarray, amount: np.ndarray, move, objects: tuple[np.ndarray, list],
                     rate: float) -> np.ndarray:
     """joints (N, H, 22, 3) with each person in turn moved by move(poses, amount[:, h]) (_no_deeper),
-    no deeper into the people moved before them either (two people leaning over a box from either
+    no deeper into anyone else either, as moved so far (two people leaning over a box from either
     side put their heads 14 cm into each other)."""
     out = joints.copy()
     for a in range(joints.shape[1]):
