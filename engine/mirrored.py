@@ -42,5 +42,7 @@ def crossed_over(keypose: Keypose) -> bool:
 def without_mirrored_template(storyboard: Storyboard) -> Storyboard:
     """The storyboard with the template's joints of each crossed-over keypose unplaced (itself
     where none crosses over)."""
-    keys = [replace(k, mask=k.mask & ~TEMPLATE) if crossed_over(k) else k for k in storyboard.keyposes]
-    return replace(storyboard, keyposes=keys) if any(a is not b for a, b in zip(keys, storyboard.keyposes)) else storyboard
+    if not any(crossed_over(k) for k in storyboard.keyposes):
+        return storyboard
+    return replace(storyboard, keyposes=[replace(k, mask=k.mask & ~TEMPLATE) if crossed_over(k) else k
+                                         for k in storyboard.keyposes])

@@ -5,10 +5,10 @@
 
 The storyboard stays as drawn (its frames, its frame rate; only shared or crossed grips are
 mended, engine.grips, and a figure posed from a template facing the other way keeps only its
-hands, feet and head, engine.mirrored): finishing and the output use it. The networks animate at MODEL_FPS in fixed
-slots (engine.models.slots); `for_model` retimes the storyboard to that rate, pads it to the
-decoder's frame stride and builds its controls once, for the network's conditioning and the
-guidance energies alike.
+hands, feet and head, engine.mirrored): finishing and the output use it. The networks animate
+at MODEL_FPS in fixed slots (engine.models.slots); `for_model` retimes the storyboard to that
+rate, pads it to the decoder's frame stride and builds its controls once, for the network's
+conditioning and the guidance energies alike.
 """
 from __future__ import annotations
 

@@ -15,11 +15,11 @@ import numpy as np
 
 from ..finishing.held import true_spans
 from ..generate import generate
-from ..metrics import foot_skate_ratio
 from ..models.bundle import load_default
 from ..sampling.config import sampler_config
-from .animator import ANIMATOR_TARGETS, animator_metrics
+from .animator import ANIMATOR_TARGETS
 from .protocol import ProtocolConfig, build_protocols
+from .runner import sample_metrics
 
 DROP = 0.05   # m above its rest at a release: dropped, not put down
 
@@ -48,9 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     bundle, rows, drops = load_default(), [], []
     for item in items:
         clip = generate(item.storyboard, sampler_config(seed=0), bundle, quiet=True).clips[0]
-        row = animator_metrics(clip, item.storyboard, item.reference)
-        row["FootSkate"] = foot_skate_ratio(np.asarray(clip.joints, float), clip.fps)
-        rows.append(row)
+        rows.append(sample_metrics(clip, item))
         drops += release_drops(clip, item.storyboard)
     print(f"{len(items)} artist-style storyboards (scenes {args.first}-{args.first + args.scenes - 1}), Ours, seed 0")
     for name, bound in ANIMATOR_TARGETS.items():

@@ -89,16 +89,16 @@ def _fit_position(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray, yaw: 
 def _clear_of_people(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints: np.ndarray,
                      holding: np.ndarray, iterations: int, sigma: float) -> np.ndarray:
     """Push a held object (pos (N, 3), yaw (N,)) out in front of each holder (joints
-    (N, H, 22, 3), holding (N, H) bool), and from anyone else towards the holders, until no body sphere but the
-    arms' is inside it: decoded hands often hang by the hips, and an object fitted to them would
-    sit in the pelvis (and a box handed over sat 17 cm into the giver's pelvis after the giver let
-    go). Pushes from holders facing each other cancel (there is no room between them). The push
-    eases over `sigma` frames as an envelope (blend.eased_push): pushed at one frame or two, the
-    held path's smoothing left a box 11 cm inside a chest. Returns pos (N, 3)."""
+    (N, H, 22, 3), holding (N, H) bool), and from anyone else towards the holders, until no body
+    sphere but the arms' is inside it: decoded hands often hang by the hips, and an object fitted
+    to them would sit in the pelvis (and a box handed over sat 17 cm into the giver's pelvis after
+    the giver let go). Pushes from holders facing each other cancel (there is no room between
+    them). The push eases over `sigma` frames as an envelope (blend.eased_push): pushed at one
+    frame or two, the held path's smoothing left a box 11 cm inside a chest. Returns pos (N, 3)."""
     n = len(pos)
     points, radii = _body_spheres(joints)
     pelvis = joints[:, :, 0]
-    holders = np.sum(holding[..., None] * pelvis, axis=1) / np.maximum(holding.sum(axis=1), 1)[:, None]   # (N, 3)
+    holders = np.sum(holding[..., None] * pelvis, axis=1) / np.maximum(holding.sum(axis=1), 1)[:, None]  # (N, 3)
     # In front of a holder; from anyone else towards the holders, in whose hands it is.
     away = np.where(holding[..., None], forward_of(joints), normalize((holders[:, None] - pelvis) * (1.0, 0.0, 1.0)))
     held = holding.any(axis=1, keepdims=True)                          # (N, 1): pushed only while held
