@@ -269,8 +269,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-finish", action="store_true",
                    help="keep the sampler's raw decode (no finishing pass: keyposes, paths, contacts, feet)")
     s.add_argument("--preview", action="store_true",
-                   help="the fast path an artist sees while dragging: the preview student's few steps, "
-                        "energy on the last only, finished like the full generation")
+                   help="the fast path an artist sees while dragging: the preview student's few jumps, "
+                        "no energy guidance, finished without the clean-up (keys, paths, feet, grips exact)")
     s.add_argument("--steady", action="store_true",
                    help="damped guidance: a small stroke edit changes the motion a little, not into a new "
                         "take (feet skate more)")

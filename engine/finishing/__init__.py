@@ -27,6 +27,8 @@ that keep each person's bone lengths:
    with the pushed joints held, and knees and elbows that it leaves popping between their ends
    smoothed once more (limbs.py), never deeper into an object.
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
+A preview is finished without the clean-up (FinishConfig.polish): the step and crouch of 4, the
+elbow swivel, the hands pushed out of objects and the smoothing of 5 and 6.
 """
 from __future__ import annotations
 
@@ -70,6 +72,11 @@ class FinishConfig:
     # artist-style storyboards within 5 cm 42 -> 48%; at 2 cm, 42%).
     last_limbs: LimbConfig = field(default_factory=lambda: LimbConfig(tolerance=0.01))
     steady: SteadyConfig = field(default_factory=SteadyConfig)
+    # The clean-up an animator does without while dragging, 60% of the finishing's time: the step
+    # and crouch to grips out of reach, elbows swivelled off the objects and hands pushed out, and
+    # the smoothing of pops (limbs.py, steady.py). A preview leaves it out (sampler_config); keys,
+    # paths, planted feet and the object in the hands stay exact.
+    polish: bool = True
 
 
 def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -122,7 +129,7 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)
     if config.paths:
         joints = follow_paths(joints, storyboard, config.path, clip.fps)
-    if config.contacts and clip.obj_pose is not None and storyboard.objects:   # before the feet plant
+    if config.polish and config.contacts and clip.obj_pose is not None and storyboard.objects:   # before the feet plant
         joints = step_within_reach(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
     if config.feet:  # before the object: hands that hold it must not move after it is placed
         keys = key_frames(storyboard)   # the warp placed these poses: feet plant where they stand
@@ -130,11 +137,23 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
     kw = {}
     if config.contacts and clip.obj_pose is not None and storyboard.objects:
         pose = hold_object(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
-        joints = crouch_to_grips(joints, pose, storyboard, config.contact)
+        if config.polish:
+            joints = crouch_to_grips(joints, pose, storyboard, config.contact)
         kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
     if config.contacts:
-        joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact, kw.get("obj_pose"))
+        joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact, kw.get("obj_pose"),
+                                swivel=config.polish)
     obj_pose = kw["obj_pose"].astype(float) if config.contacts and "obj_pose" in kw else None
+    if config.polish:
+        joints = _polished(joints, offsets, obj_pose, storyboard, config)
+    rotations = inverse_kinematics(joints, offsets)
+    return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
+                   bone_offsets=offsets.astype(np.float32), **kw)
+
+
+def _polished(joints: np.ndarray, offsets: np.ndarray, obj_pose: np.ndarray | None, storyboard: Storyboard,
+              config: FinishConfig) -> np.ndarray:
+    """Hands out of the objects (obj_pose (N, O, 7) or None) and pops smoothed: joints (N, H, 22, 3)."""
     if obj_pose is not None:
         joints = clear_hands(joints, obj_pose, storyboard, config.contact.clear_frames)
     objects = None if obj_pose is None else (obj_pose, [o.spec for o in storyboard.objects])
@@ -148,7 +167,4 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
         pushed = np.flatnonzero(moved.any(axis=(0, 2)))
         if len(pushed):
             joints = steady_body(cleared, offsets, storyboard, config.steady, pushed, held=moved)
-    joints = _last_limb_pass(joints, config.last_limbs, objects)
-    rotations = inverse_kinematics(joints, offsets)
-    return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
-                   bone_offsets=offsets.astype(np.float32), **kw)
+    return _last_limb_pass(joints, config.last_limbs, objects)

@@ -171,18 +171,20 @@ def _arm_runs(frames: np.ndarray, people: np.ndarray) -> list[np.ndarray]:
 
 
 def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboard: Storyboard,
-                   config: ContactConfig = ContactConfig(), obj_pose: np.ndarray | None = None) -> np.ndarray:
+                   config: ContactConfig = ContactConfig(), obj_pose: np.ndarray | None = None,
+                   swivel: bool = True) -> np.ndarray:
     """Put every contact's wrist on its target (reach_with_arms).
 
     joints (N, H, 22, 3); obj_anchors (N, O, K, 3) (see object_anchors), or None when the
     storyboard has only hand-to-hand contacts. Returns new joints (N, H, 22, 3): elbows and
     wrists of contact arms move, blended in over `blend_frames` before each span and out after.
     With the objects' poses obj_pose (N, O, 7), a hand the generated motion puts inside an object
-    near its span holds on there too (_held_span), and elbows swivel off the objects.
+    near its span holds on there too (_held_span), and elbows swivel off the objects (unless not
+    `swivel`: a preview's arms may pass through a box).
     """
     joints = np.asarray(joints, float)
     target, weight = _contact_targets(joints, obj_anchors, storyboard, config, obj_pose)
-    return reach_with_arms(joints, target, weight, obj_pose, storyboard, config)
+    return reach_with_arms(joints, target, weight, obj_pose if swivel else None, storyboard, config)
 
 
 def reach_with_arms(joints: np.ndarray, target: np.ndarray, weight: np.ndarray, obj_pose: np.ndarray | None = None,

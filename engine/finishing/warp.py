@@ -171,7 +171,7 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     b = np.concatenate([np.zeros(len(sketched)), kept,
                         config.ground_weight * (config.foot_height - origin[sketched[standing], 1]
                                                 - depth[sketched[standing]] * back[1])])
-    x = np.linalg.lstsq(a, b, rcond=None)[0]
+    x = _least_squares(a, b)
     for _ in range(config.bone_iterations):   # Gauss-Newton on the bone lengths
         points = origin[sketched] + (depth[sketched] + x)[:, None] * back
         bone = points[bone_child] - points[bone_parent]
@@ -179,7 +179,7 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
         slope = config.bone_weight * (bone @ back) / length                     # d length / d x_child
         jac = np.concatenate([a, slope[:, None] * (eye[bone_child] - eye[bone_parent])])
         res = np.concatenate([a @ x - b, config.bone_weight * (length - bone_lengths)])
-        x = x - np.linalg.lstsq(jac, res, rcond=None)[0]
+        x = x - _least_squares(jac, res)
     out = joints.copy()
     for j in range(NUM_JOINTS):
         if mask[j]:
@@ -189,6 +189,12 @@ def solve_keypose(joints: np.ndarray, uv: np.ndarray, mask: np.ndarray, camera: 
     if abs(back[1]) > LEVEL:   # the lower foot exactly on the ground: a slide along the ray keeps the sketch
         out += grounding_height(out, config.foot_height) / back[1] * back
     return out
+
+
+def _least_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """argmin |a x - b| for a (R, S) of full column rank (the depth anchor rows make it so), by
+    the normal equations: np.linalg.lstsq's SVD cost 0.13 ms a call, half of the warp's time."""
+    return np.linalg.solve(a.T @ a, a.T @ b)
 
 
 def _sketched_ancestor(joint: int, mask: np.ndarray) -> int:

@@ -1,14 +1,14 @@
-"""The few-step preview student: the guided student's ODE distilled into PREVIEW_STEPS jumps.
+"""The few-step preview student: the guided student's ODE distilled into a few jumps.
 
-The student needs ~30 Heun steps, each two evaluations of a classifier-free guided field (two
-passes per evaluation): 60 network calls. The preview student is the same network (initialised
+The student takes 9 Heun steps, each two evaluations of a classifier-free guided field (two
+passes each): 18 evaluations. The preview student is the same network (initialised
 from the student) trained so that one conditional call per step follows that guided ODE over
-a jump of 1 / PREVIEW_STEPS in t, classifier-free guidance included:
+a jump of 1 / K in t (K = ModelConfig.preview_steps), classifier-free guidance included:
 
     z_{k+1} = z_k + (t_{k+1} - t_k) * mix(v_preview(z_k, t_k), occupancy)      t_k = 1 - k / K
 
 Targets come from the frozen student itself (`reference_path`: the guided ODE from the same
-noise, `substeps` Heun steps per jump), so the preview needs no data of its own and inherits
+noise, REFERENCE_STEPS Heun steps in all), so the preview needs no data of its own and inherits
 the student's conditioning; each of the K jumps of a reference path is one training example
 (teacher forcing, as in progressive distillation). Occupancy and entity positions are given as
 the sampler gives them: the phase plan, and the low-resolution decode of the clean estimate
@@ -24,7 +24,8 @@ import torch.nn.functional as F
 from .conditioning import Conditioning
 from .student import RectifiedFlowStudent
 
-PREVIEW_STEPS = 4
+PREVIEW_STEPS = 2          # jumps of a preview trained now (ModelConfig.preview_steps: the bundle's own)
+REFERENCE_STEPS = 8        # Heun steps of the reference path, whatever the jumps (the full generation takes 9)
 
 # (z, t (B,), cond, entity_pos, occupancy) -> velocity: the guided student field to follow.
 GuidedField = Callable[[torch.Tensor, torch.Tensor, Conditioning, torch.Tensor | None, torch.Tensor | None], torch.Tensor]
@@ -38,11 +39,12 @@ def preview_times(steps: int = PREVIEW_STEPS) -> list[float]:
 
 @torch.no_grad()
 def reference_path(field: GuidedField, lowres: LowRes, z1: torch.Tensor, cond: Conditioning,
-                   occupancy: torch.Tensor | None, substeps: int = 2,
-                   steps: int = PREVIEW_STEPS) -> tuple[list[torch.Tensor], list[torch.Tensor | None]]:
-    """The guided ODE from noise z1 (B, T_lat, V, d) by Heun steps, `substeps` per jump:
-    (states at preview_times, K + 1 of them; the entity positions the sampler would use at the
-    start of each jump, K of them, None at the first)."""
+                   occupancy: torch.Tensor | None, steps: int = PREVIEW_STEPS,
+                   substeps: int | None = None) -> tuple[list[torch.Tensor], list[torch.Tensor | None]]:
+    """The guided ODE from noise z1 (B, T_lat, V, d) by Heun steps, `substeps` per jump (by default
+    REFERENCE_STEPS in all): (states at preview_times(steps), K + 1 of them; the entity positions
+    the sampler would use at the start of each jump, K of them, None at the first)."""
+    substeps = substeps or max(1, REFERENCE_STEPS // steps)
     times = torch.linspace(1.0, 0.0, steps * substeps + 1).tolist()
     z, pos, states, positions = z1, None, [z1], [None]
     for i, (t, t_next) in enumerate(zip(times[:-1], times[1:])):

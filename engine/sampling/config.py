@@ -9,11 +9,6 @@ METHODS = ("student", "teacher-ddpm", "teacher-ddim")
 # guidance_max_rate of "steady" generation (the app's Steady checkbox, generate --steady);
 # BENCHMARKS.md compares it with the default ("Ours, steady"; stroke-nudge stability).
 STEADY_GUIDANCE_RATE = 5.0
-PREVIEW_REFINE_STEPS = 0   # energy steps on a preview's final latent after its last step's one
-# A preview plans the contact phases after its first jump and on its result: planning again
-# after its third jump as well (every 2) changed no key, path, grip or contact figure in the
-# third decimal (83 protocol storyboards, two seeds) and took 40% longer to plan.
-PREVIEW_CTMC_EVERY = 4
 # Heun steps of the full generation. Measured after finishing on 40 held-out synthesized and 20
 # artist-style storyboards, means of two seeds: 30 -> 10 steps keep K3D (3.4 -> 3.3 cm) and
 # T3D (synthesized 7.1 -> 7.3, artist-style 14.0 -> 14.4 cm); FID rises 0.108 -> 0.123
@@ -52,7 +47,7 @@ class SamplerConfig:
     use_temporal_bias: bool = True  # trajectory attention bias ("w/o temporal bias")
     use_text: bool = True           # the storyboard's text, for a model that reads it ("sketch only")
     trajectory_only: bool = False   # only the trajectory energy ("trajectory-only")
-    ctmc_every: int = 3
+    ctmc_every: int = 3             # re-plan the phases after every k-th step (0: on the result only)
     guidance_steps: int = 1         # energy steps on z0_hat per solver step
     guidance_start: float = 0.7     # guide only once t <= this (near noise the network re-predicts
                                     # z0_hat almost regardless of z, so early guidance is mostly lost)
@@ -67,6 +62,7 @@ class SamplerConfig:
     langevin_steps: int = 0         # micro-Langevin with the teacher score (paper: 3)
     langevin_step_size: float = 1e-3
     finish: bool = True             # engine.finishing on the final clips ("w/o finishing")
+    polish: bool = True             # with its clean-up passes (FinishConfig.polish; a preview's go without)
     check_surrogate: bool = False   # also take the exact gradient through the decoder and report
                                     # its cosine to B_rho's as the energy "surrogate_cosine" (slower)
     threads: int | None = None      # torch threads (None: engine.cpu chooses from the free cores, and
@@ -88,12 +84,20 @@ def sampler_config(*, method: str = "student", steps: int = DEFAULT_STEPS, seed:
                    steady: bool = False, preview: bool = False, threads: int | None = None,
                    reserve_cores: float = 0.0, text_cfg: float | None = None) -> SamplerConfig:
     """A SamplerConfig from the choices a person makes (checked: SamplerError on a bad one).
-    `preview`: the fast path for motion that follows the pointer: the preview student's few
-    jumps, energy guidance only on the final latent (steps and cfg unused). It is finished like
-    the full generation: with keyposes and paths alone (30 ms less) its feet skated in 70% of the
-    frames and the box floated 1.2 m from the hands (20 artist-style storyboards); without the
-    last smoothing passes (limbs.py, steady.py: 14 ms) the largest pop per clip rose from
-    6.4 to 9.4 cm on hand-drawn storyboards and 5.9 to 8.2 cm on synthesized ones (two seeds)."""
+    `preview`: the fast path for motion that follows the pointer (steps and cfg unused): the
+    preview student's jumps (ModelConfig.preview_steps), no energy guidance, the phases planned on
+    the result only, finished without the clean-up (FinishConfig.polish). On 25 held-out
+    storyboards (10 synthesized, 3 real, 12 artist-style), against the 4-jump preview with its last
+    jump guided and the whole finishing: keys and paths as close (K2D 1.2 / 2.3 / 4.2 cm, T2D
+    2.8 / 3.4 / 4.2 cm, where the full generation's are 1.1 / 2.1 / 4.2 and 2.6 / 2.6 / 4.2), larger
+    pops (the largest per clip 6.0 / 10.2 / 7.3 cm against 4.8 / 5.3 / 4.8) and hands off grips
+    too low to reach without the crouch (2.6 cm on the artist-style ones). On the let_go example
+    (0.24 -> 0.11 s): the clean-up is 89 ms of it, 2 jumps instead of 4 save 17 ms, no guidance
+    22 ms (the latent term alone, guidance's cheap part, made it worse: pops 7.7 cm, K2D 1.4 cm),
+    one plan instead of two 9 ms (keys and grips unchanged to 0.4 mm). Kept in: the skeleton fit's
+    smoothing (without it, with the latent term on, the pops were 10.1 cm, not 7.7) and the held
+    box pushed out of the bodies (penetration 6.2 cm without, not 2.3).
+    """
     config = SamplerConfig(steps=steps, seed=seed, cfg=cfg, text_cfg=text_cfg, method=method, variations=variations,
                            use_energy=energy, use_ctmc=ctmc, finish=finish,
                            guidance_max_rate=STEADY_GUIDANCE_RATE if steady else None,
@@ -101,7 +105,6 @@ def sampler_config(*, method: str = "student", steps: int = DEFAULT_STEPS, seed:
     if preview:
         if method != "student":
             raise SamplerError("a preview is the student's; it has no teacher method")
-        config = replace(config, few_step=True, ctmc_every=PREVIEW_CTMC_EVERY, guidance_start=0.0,
-                         final_refine_steps=PREVIEW_REFINE_STEPS)
+        config = replace(config, few_step=True, ctmc_every=0, use_energy=False, use_latent=False, polish=False)
     config.check()
     return config

@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from ..clip import MotionClip
-from ..finishing import finish
+from ..finishing import FinishConfig, finish
 from ..io.resample import resample_clip, resample_linear
 from ..models.slots import MODEL_FPS
 from ..request import ModelView, Request
@@ -91,7 +91,8 @@ class Output:
                  for k in range(motion["joints"].shape[0])]
         if not finishing:
             return clips
-        finished = [finish(clip, self.storyboard) for clip in clips]
+        config = FinishConfig(polish=self.config.polish)
+        finished = [finish(clip, self.storyboard, config) for clip in clips]
         return [replace(c, contact=_hand_contact(c.joints, c.obj_anchors, c.phase)) for c in finished]
 
 

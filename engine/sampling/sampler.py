@@ -13,16 +13,17 @@ This module only orchestrates; each part has its own home:
     output.py            decoding, clips at the storyboard's rate, finishing
     the bundle's planner the CTMC occupancy, re-planned here and passed to the field and the energies
 
-Preview (few_step): the preview student's PREVIEW_STEPS jumps, one conditional evaluation each
-(guidance distilled into it), re-planned after every jump; otherwise as below.
+Preview (few_step): the preview student's jumps, one conditional evaluation each (classifier-free
+guidance distilled into it); otherwise as below.
 
 Student (default): z_1 ~ N(0, I); a guided Heun ODE from t = 1 (noise) to t = 0 (data) on the
 rectified-flow student, classifier-free guided (weight `cfg`, conditional and unconditional
 passes in one batch), its S = 3 phase sub-fields mixed by the CTMC occupancy, re-planned every
-`ctmc_every` steps. After each step, guidance moves the clean estimate z0_hat; the step keeps its
-noise estimate, so the correction enters the trajectory at the scale (1 - t) it would have had
-at that time. An optional micro-Langevin pass with the teacher's score sharpens the end, and the
-final clips go through engine.finishing (keyposes, paths, feet and contacts made exact).
+`ctmc_every` steps (0: on the result only). After each step, guidance moves the clean estimate
+z0_hat; the step keeps its noise estimate, so the correction enters the trajectory at the scale
+(1 - t) it would have had at that time. An optional micro-Langevin pass with the teacher's score
+sharpens the end, and the final clips go through engine.finishing (keyposes, paths, feet and
+contacts made exact).
 
 Teacher methods (DDPM 1000 steps, DDIM) run the frozen teacher unguided, as the "COLLAGE
 Teacher" baseline. Ablations are flags of the same config.
@@ -174,7 +175,7 @@ class _Run:
     def student(self) -> Generator[StepEvent, None, GenerationResult]:
         cfg, guidance = self.cfg, self.guidance
         z = torch.randn(self.latent_shape, generator=self.generator)
-        ts = preview_times() if cfg.few_step else flow_times(cfg.steps)
+        ts = preview_times(self.bundle.config.preview_steps) if cfg.few_step else flow_times(cfg.steps)
         steps = len(ts) - 1
         entity_pos, z0 = None, z
         for i in range(steps):
@@ -188,7 +189,7 @@ class _Run:
                 z_next, v_end = heun_step(field, z, t, t_next)
                 z0 = flow_clean_estimate(z_next, v_end, t_next)
                 noise = (z_next - (1 - t_next) * z0) / max(t_next, 1e-8)
-            if cfg.use_ctmc and i % cfg.ctmc_every == 0:
+            if cfg.use_ctmc and cfg.ctmc_every and i % cfg.ctmc_every == 0:
                 self._plan(z0)
             energies = {}
             if guidance.active and t_next <= cfg.guidance_start:

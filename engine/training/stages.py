@@ -307,7 +307,8 @@ def _preview(parts, cfg, runs, dataset) -> StageTask:
             c = _text_dropped(cond(batch, z0.shape[1], z0.shape[2]), g)
             occupancy = planner(z0, batch, batch["contact"]).occupancy
             z1 = torch.randn(z0.shape, generator=g, device=z0.device)
-            states, positions = preview.reference_path(field, vq.decode_lowres, z1, c, occupancy)
+            states, positions = preview.reference_path(field, vq.decode_lowres, z1, c, occupancy,
+                                                       cfg.model.preview_steps)
         return preview.preview_loss(fast, states, positions, c, occupancy)
 
     return StageTask("preview", nn.ModuleDict({"preview": fast}), loss,

@@ -3,6 +3,7 @@ guided field, and the loss is the jump velocities' error, zero for a field that 
 import torch
 
 from engine.models.conditioning import Conditioning
+from engine.models.bundle import ModelConfig
 from engine.models.preview import PREVIEW_STEPS, preview_loss, preview_times, reference_path
 
 
@@ -17,6 +18,25 @@ def test_the_reference_path_follows_the_field():
     assert len(states) == PREVIEW_STEPS + 1 and len(positions) == PREVIEW_STEPS and positions[0] is None
     for state, t in zip(states, preview_times()):
         assert torch.allclose(state, z1 * torch.exp(torch.tensor(t - 1.0)), rtol=1e-3)
+
+
+def test_the_reference_path_takes_as_many_heun_steps_whatever_the_jumps():
+    calls = []
+
+    def counted(z, t, cond, pos, occupancy):
+        calls.append(float(t[0]))
+        return z
+
+    for steps in (1, 2, 4):
+        calls.clear()
+        states, _ = reference_path(counted, lambda z: z[..., :3], torch.randn(1, 5, 3, 4), None, None, steps)
+        assert len(states) == steps + 1 and len(calls) == 16      # REFERENCE_STEPS Heun steps, two calls each
+
+
+def test_a_bundle_says_how_many_jumps_its_preview_takes():
+    assert ModelConfig.from_dict(ModelConfig.default().to_dict()).preview_steps == PREVIEW_STEPS
+    written_before = {k: v for k, v in ModelConfig.default().to_dict().items() if k != "preview_steps"}
+    assert ModelConfig.from_dict(written_before).preview_steps == 4    # the jumps every earlier preview took
 
 
 class Jumps(torch.nn.Module):

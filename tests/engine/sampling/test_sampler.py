@@ -9,7 +9,6 @@ import torch
 
 from engine.metrics import adherence
 from engine.models.bundle import ModelConfig, load_bundle, untrained_bundle
-from engine.models.preview import PREVIEW_STEPS
 from engine.models.teacher import VPSchedule
 from engine.request import Request
 from engine.sampling.config import SamplerConfig, SamplerError, sampler_config
@@ -222,8 +221,9 @@ def test_surrogate_check_reports_a_cosine_per_guided_step_and_changes_nothing(st
 def test_a_preview_is_the_preview_students_few_jumps_one_evaluation_each(bundle, storyboard):
     config = sampler_config(preview=True, seed=3)
     events, result = drain(sample(bundle, storyboard, config))
-    assert [e.step for e in events] == list(range(PREVIEW_STEPS)) and events[-1].t == 0.0
-    assert result.network_evals == PREVIEW_STEPS            # guidance distilled: one pass per step
+    jumps = bundle.config.preview_steps
+    assert [e.step for e in events] == list(range(jumps)) and events[-1].t == 0.0
+    assert result.network_evals == jumps                    # guidance distilled: one pass per step
     assert np.isfinite(result.clips[0].joints).all()
     # The preview student is what runs: other weights in it, other motion.
     other = copy.deepcopy(bundle)
