@@ -2,10 +2,11 @@
 
 Per method: median wall time per generation over `repeats` runs of a 6 s two-person-and-object
 storyboard, time to the first streamed step, network evaluations, and peak memory: the peak
-resident set size (RSS, /proc/self/statm sampled every 2 ms in a thread) during the generation
-minus the RSS just before it, after glibc's malloc_trim has handed freed heap back to the OS
-(otherwise memory kept from an earlier run hides this one's). A working-set estimate, not an
-exact allocation count. One untimed warm-up generation first pays the one-time costs
+resident set size (RSS, /proc/self/statm sampled every 2 ms in a thread) during one more
+generation minus the RSS just before it, after glibc's malloc_trim has handed freed heap back to
+the OS (otherwise memory kept from an earlier run hides this one's). A working-set estimate, not
+an exact allocation count. The timed runs go without the sampling thread: waking for the GIL
+every 2 ms, it slowed the preview's many small numpy calls by 9% (0.146 against 0.134 s). One untimed warm-up generation first pays the one-time costs
 (thread pools, lazy initialisation) so that they land on no method. The repeats take turns
 across methods (round r runs every method once), so that a burst of load from another tenant
 of a shared host slows one round of every method, which the medians drop, rather than every
@@ -95,23 +96,27 @@ class CompetingLoad:
 
 
 def _timed_run(bundle, method: Method, storyboard: Storyboard, seed: int, index=None) -> dict[str, float]:
-    """One generation: wall time, first-step time (s), peak RSS delta (MiB), network evaluations."""
+    """One generation: wall time, first-step time (s), network evaluations, seconds per stage."""
+    start = time.perf_counter()
+    g = generate(bundle, method, storyboard, seed=seed, index=index)
+    wall = time.perf_counter() - start
+    return {"wall_s": wall, "first_step_s": g.first_step_s, "network_evals": g.network_evals, "stage_s": g.stage_s}
+
+
+def peak_memory_mib(bundle, method: Method, storyboard: Storyboard, index=None) -> float:
+    """The peak RSS delta (MiB) of one generation (PeakRss), untimed."""
     with PeakRss() as rss:
-        start = time.perf_counter()
-        g = generate(bundle, method, storyboard, seed=seed, index=index)
-        wall = time.perf_counter() - start
-    return {"wall_s": wall, "first_step_s": g.first_step_s, "peak_rss_mib": rss.peak_delta / 2 ** 20,
-            "network_evals": g.network_evals, "stage_s": g.stage_s}
+        generate(bundle, method, storyboard, index=index)
+    return rss.peak_delta / 2 ** 20
 
 
 def _medians(runs: list[dict[str, float]]) -> dict[str, float]:
-    """Median wall time, first-step time, peak RSS and time per sampler stage of runs of one
-    method; its evaluations."""
+    """Median wall time, first-step time and time per sampler stage of runs of one method; its
+    evaluations."""
     stages = runs[-1].get("stage_s", {})
     return {"wall_s": statistics.median(r["wall_s"] for r in runs),
             "first_step_s": statistics.median(r["first_step_s"] for r in runs),
-            "network_evals": runs[-1]["network_evals"],
-            "peak_rss_mib": statistics.median(r["peak_rss_mib"] for r in runs), "repeats": len(runs),
+            "network_evals": runs[-1]["network_evals"], "repeats": len(runs),
             "stage_s": {k: statistics.median(r.get("stage_s", {}).get(k, 0.0) for r in runs) for k in stages}}
 
 
@@ -163,7 +168,8 @@ def speed_table(bundle, methods: tuple[Method, ...], scaling_methods: tuple[Meth
                 runs[m.key].append(_timed_run(bundle, m, base, r, index))
                 if log:
                     log(f"speed {m.label} (round {r + 1}): {runs[m.key][-1]['wall_s']:.2f} s")
-    out["per_method"] = {key: _medians(method_runs) for key, method_runs in runs.items()}
+    out["per_method"] = {m.key: {**_medians(runs[m.key]), "peak_rss_mib": peak_memory_mib(bundle, m, base, index)}
+                         for m in methods}
     if config.busy_repeats:
         out["busy"] = beside_busy_process(bundle, methods[0], base, config, index, log)
     for m in scaling_methods:

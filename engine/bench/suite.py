@@ -218,8 +218,8 @@ def _speed(bundle, config: BenchConfig, index, log) -> dict:
                  for s in set(config.speed.lengths_s) | {6.0}}
     table = speed_table(bundle, config.speed_methods, config.scaling_methods, by_length, config.speed, index, log)
     table["scene"] = f"{scene.scenario}, seed {config.speed_scene_seed}, sliced to each length"
-    table["memory"] = ("peak RSS during the generation minus RSS before it, after malloc_trim "
-                       "(/proc/self/statm sampled every 2 ms; median over the repeats)")
+    table["memory"] = ("peak RSS during one more, untimed generation minus RSS before it, after malloc_trim "
+                       "(/proc/self/statm sampled every 2 ms)")
     return table
 
 

@@ -246,7 +246,9 @@ def _eased_handovers(yaw: np.ndarray, held: np.ndarray, grips: np.ndarray, confi
     jumps where a hand joins or leaves the hold eased out: the heading of two people's hands is
     not one person's chest's, and a partner letting go of a box turned it 69 degrees in a frame.
     (Its position's jumps are left: eased, the grips went out of the new holder's reach.)"""
-    changes = [c for c in range(1, len(yaw)) if held[c].any() and held[c - 1].any() and (held[c] != held[c - 1]).any()]
+    hands = held.reshape(len(held), -1)
+    holding = hands.any(axis=1)
+    changes = (np.flatnonzero(holding[1:] & holding[:-1] & np.any(hands[1:] != hands[:-1], axis=1)) + 1).tolist()
     if not changes:
         return yaw
     radius = np.max(norm(grips[..., [0, 2]]))   # how far a turn moves a grip

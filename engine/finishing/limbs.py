@@ -119,12 +119,16 @@ def steady_rotations(generated: np.ndarray, root: np.ndarray, rotations: np.ndar
     if n < 3:
         return rotations
     wanted = spike(generated)                                                   # (N, 22)
+    posed = forward_kinematics(root, rotations, offsets)                         # (N, 22, 3)
+    before = (spike(posed) - wanted).max(axis=-1)
 
     def excess(r: np.ndarray) -> np.ndarray:   # (N,) how much more each frame spikes than generated
-        return (spike(forward_kinematics(root, r, offsets)) - wanted).max(axis=-1)
+        changed = np.flatnonzero(np.any(r != rotations, axis=(1, 2, 3)))          # FK only where it changed
+        moved = posed.copy()
+        moved[changed] = forward_kinematics(root[changed], r[changed], offsets)
+        return (spike(moved) - wanted).max(axis=-1)
 
-    smoothed, before = rotations, excess(rotations)
-    after = before
+    smoothed, after = rotations, before
     for _ in range(config.passes):
         popping = after > config.tolerance
         if not popping.any():

@@ -4,6 +4,7 @@ import json
 import math
 import time
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -170,6 +171,21 @@ def test_speed_repeats_take_turns_across_methods(monkeypatch):
                      ("ours", 1), ("teacher_ddim", 1), ("ours", 2), ("teacher_ddim", 2)]
     assert table["per_method"]["ours"]["wall_s"] == 4.0 and table["per_method"]["ours"]["repeats"] == 3
     assert table["per_method"]["teacher_ddpm"]["repeats"] == 1
+    assert all(isinstance(f["peak_rss_mib"], float) for f in table["per_method"].values())
+
+
+def test_timed_runs_go_without_the_memory_sampler(monkeypatch):
+    """The RSS sampling thread wakes for the GIL every 2 ms and slows short runs: the timed run
+    starts no thread, the memory run one."""
+    import threading
+    import engine.bench.speed as speed
+    threads = []
+    monkeypatch.setattr(speed, "generate", lambda *a, **k: threads.append(threading.active_count())
+                        or SimpleNamespace(first_step_s=0.0, network_evals=1, stage_s={}))
+    before = threading.active_count()
+    speed._timed_run(None, OURS, Storyboard(), 0)
+    speed.peak_memory_mib(None, OURS, Storyboard())
+    assert threads == [before, before + 1]
 
 
 def test_busy_row_runs_in_turns_beside_a_real_busy_loop(monkeypatch):
