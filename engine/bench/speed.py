@@ -6,11 +6,11 @@ resident set size (RSS, /proc/self/statm sampled every 2 ms in a thread) during 
 generation minus the RSS just before it, after glibc's malloc_trim has handed freed heap back to
 the OS (otherwise memory kept from an earlier run hides this one's). A working-set estimate, not
 an exact allocation count. The timed runs go without the sampling thread: waking for the GIL
-every 2 ms, it slowed the preview's many small numpy calls by 9% (0.146 against 0.134 s). One untimed warm-up generation first pays the one-time costs
-(thread pools, lazy initialisation) so that they land on no method. The repeats take turns
-across methods (round r runs every method once), so that a burst of load from another tenant
-of a shared host slows one round of every method, which the medians drop, rather than every
-run of whichever method it coincides with.
+every 2 ms, it slowed the preview's many small numpy calls by 9% (0.146 against 0.134 s). One
+untimed warm-up generation first pays the one-time costs (thread pools, lazy initialisation) so
+that they land on no method. The repeats take turns across methods (round r runs every method
+once), so that a burst of load from another tenant of a shared host slows one round of every
+method, which the medians drop, rather than every run of whichever method it coincides with.
 Scaling: wall time at clip lengths 2, 6 and 12 s and for 2 people without vs with the object.
 Busy machine: the first method (Ours) again, in turns with and without a CPU-bound process beside
 it (a busy loop the benchmark starts and stops itself), to show that the thread count follows the
