@@ -119,10 +119,12 @@ def _ik_levels() -> tuple:
 _IK_LEVELS = _ik_levels()
 
 
-def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS) -> np.ndarray:
+def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS,
+                       root: np.ndarray | None = None) -> np.ndarray:
     """Local rotations that make FK(joints[pelvis], R, offsets) reproduce `joints`.
 
-    joints: (..., 22, 3). Returns local rotations (..., 22, 3, 3).
+    joints: (..., 22, 3); root: the pelvis' rotations (..., 3, 3) to keep, or None to fit them.
+    Returns local rotations (..., 22, 3, 3).
     Joints with one child get the smallest rotation (no twist) that points the bone at the
     child; joints with several children (pelvis, spine3) get the Kabsch fit of all child
     bones; leaf joints get the identity. Exact when bone geometry matches `offsets`.
@@ -144,7 +146,7 @@ def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS) -
             parent_glob = glob[..., PARENTS[j], :, :]
             kids_j = list(CHILDREN[j])
             target = (joints[..., kids_j, :] - joints[..., j, None, :]) @ parent_glob
-            R_local = kabsch(offsets[..., kids_j, :], target)
+            R_local = root if j == 0 and root is not None else kabsch(offsets[..., kids_j, :], target)
             local[..., j, :, :] = R_local
             glob[..., j, :, :] = parent_glob @ R_local
     return local

@@ -7,7 +7,8 @@ that keep each person's bone lengths:
 0. the motion retimed to the keys' timing: still through a key's hold, easing into and out of
    keys marked so (timing.py);
 1. one skeleton per person (bone offsets fitted to the generated joints; the decoder predicts
-   joints freely, so bones stretch a little from frame to frame);
+   joints freely, so bones stretch a little from frame to frame), its pelvis never turning half
+   round in a frame (turns.py);
 2. keyposes, by motion warping (warp.py), and pelvis strokes walked on time (paths.py);
 3. feet standing on the ground, planted while in stance (where a keypose in the stance has the
    foot), stepping between plants (one foot at a time: walk.py), the body lowering where it
@@ -50,6 +51,7 @@ from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .steady import SteadyConfig, frame_pops, steady_body
 from .timing import retime_to_keys, with_hold_ends
+from .turns import spread_flips
 from .paths import PathConfig, follow_paths
 from .warp import BODY_PARTS, WarpConfig, scale_per_bone, sketched_scales, warp_to_keyposes
 
@@ -90,7 +92,8 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
     root = joints[:, :, 0] * np.array([(1.0, s["legs"], 1.0) for s in scales])
     offsets = offsets * np.stack([scale_per_bone(s) for s in scales])[..., None]
     rotations = inverse_kinematics(joints, offsets)
-    rotations = np.stack([steady_rotations(joints[:, h], root[:, h], rotations[:, h], offsets[h]) for h in people], 1)
+    rotations = np.stack([steady_rotations(joints[:, h], root[:, h], spread_flips(joints[:, h], rotations[:, h], offsets[h]),
+                                           offsets[h]) for h in people], 1)
     return forward_kinematics(root, rotations, offsets), offsets
 
 

@@ -65,6 +65,24 @@ def test_fk_ik_round_trip(aa, root):
 
 
 @settings(max_examples=10, deadline=None)
+@given(rotvecs, arrays(np.float64, (4, 3), elements=finite))
+def test_ik_keeps_a_given_pelvis_rotation(aa, root):
+    """Given the true pelvis rotations, IK keeps them and still reproduces the joints; given
+    others, the pelvis takes them and the limbs still point at their joints."""
+    rotations = rot.axis_angle_to_matrix(aa)
+    joints = forward_kinematics(root, rotations)
+    kept = inverse_kinematics(joints, root=rotations[:, 0])
+    assert np.allclose(kept[:, 0], rotations[:, 0]) and np.allclose(forward_kinematics(root, kept), joints, atol=1e-9)
+    turned = rot.axis_angle_to_matrix(np.array([0.0, 0.5, 0.0])) @ rotations[:, 0]
+    again = forward_kinematics(root, inverse_kinematics(joints, root=turned))
+    knee, ankle = JOINT_INDEX["l_knee"], JOINT_INDEX["l_ankle"]
+    shin = again[:, ankle] - again[:, knee]
+    wanted = joints[:, ankle] - joints[:, knee]
+    assert np.allclose(shin / np.linalg.norm(shin, axis=-1, keepdims=True),
+                       wanted / np.linalg.norm(wanted, axis=-1, keepdims=True), atol=1e-9)
+
+
+@settings(max_examples=10, deadline=None)
 @given(rotvecs, st.floats(0.8, 1.2), arrays(np.float64, (3,), elements=st.floats(-0.03, 0.03)))
 def test_fit_offsets_recovers_a_different_body(aa, scale, hip_shift):
     """Imported people have their own proportions; FK(IK) must still reproduce them."""
