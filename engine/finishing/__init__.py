@@ -8,7 +8,7 @@ that keep each person's bone lengths:
    keys marked so (timing.py);
 1. one skeleton per person (bone offsets fitted to the generated joints; the decoder predicts
    joints freely, so bones stretch a little from frame to frame), its pelvis never turning half
-   round in a frame (turns.py);
+   round in a frame, its feet staying where they were while it turns (turns.py);
 2. keyposes, by motion warping (warp.py), and pelvis strokes walked on time (paths.py);
 3. feet standing on the ground, planted while in stance (where a keypose in the stance has the
    foot), stepping between plants (one foot at a time: walk.py), the body lowering where it
@@ -39,7 +39,7 @@ import numpy as np
 
 from ..clip import MotionClip
 from ..geometry.rotations import matrix_to_6d
-from ..skeleton import fit_offsets, forward_kinematics, inverse_kinematics
+from ..skeleton import FEET, fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from .clearance import clear_hands
 from .contacts import ContactConfig, object_anchors, reach_contacts
@@ -51,7 +51,7 @@ from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .steady import SteadyConfig, frame_pops, steady_body
 from .timing import retime_to_keys, with_hold_ends
-from .turns import spread_flips
+from .turns import feet_kept, spread_flips
 from .paths import PathConfig, follow_paths
 from .warp import BODY_PARTS, WarpConfig, scale_per_bone, sketched_scales, warp_to_keyposes
 
@@ -91,10 +91,15 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
               else dict.fromkeys(BODY_PARTS, 1.0) for h in people]
     root = joints[:, :, 0] * np.array([(1.0, s["legs"], 1.0) for s in scales])
     offsets = offsets * np.stack([scale_per_bone(s) for s in scales])[..., None]
-    rotations = inverse_kinematics(joints, offsets)
-    rotations = np.stack([steady_rotations(joints[:, h], root[:, h], spread_flips(joints[:, h], rotations[:, h], offsets[h]),
-                                           offsets[h]) for h in people], 1)
-    return forward_kinematics(root, rotations, offsets), offsets
+    fitted = inverse_kinematics(joints, offsets)
+    spread = [spread_flips(joints[:, h], fitted[:, h], offsets[h]) for h in people]
+    rotations = np.stack([steady_rotations(joints[:, h], root[:, h], spread[h][0], offsets[h]) for h in people], 1)
+    out = forward_kinematics(root, rotations, offsets)
+    for h, (_, turned) in zip(people, spread):
+        if len(turned):
+            feet = forward_kinematics(root[turned, h], fitted[turned, h], offsets[h])[:, list(FEET)]
+            out[turned, h] = feet_kept(out[turned, h], feet)
+    return out, offsets
 
 
 def _last_limb_pass(joints: np.ndarray, config: LimbConfig, objects: tuple | None) -> np.ndarray:

@@ -6,8 +6,9 @@ reverses between two frames (a 170-degree turn in 50 ms). The rigid skeleton fit
 the whole lower body at once, and the feet's plants re-solved after it swung a knee 50 cm in a
 frame. Here such a flip of the pelvis' heading, far faster than any person turns (a real salsa
 dancer's fastest, 230 degrees in three frames, is 77 a frame), is spread over the frames either
-side of it, the rest of the skeleton refitted to the same joints from the turned pelvis. Joint
-arrays are one person's, (N, 22, 3) in metres.
+side of it, the rest of the skeleton refitted to the same joints from the turned pelvis, and
+the legs re-solved to the feet the unturned fit had (a turn is made on the feet). Joint arrays
+are one person's, (N, 22, 3) in metres.
 """
 from __future__ import annotations
 
@@ -15,17 +16,19 @@ import numpy as np
 from scipy.ndimage import binary_dilation, label
 
 from ..skeleton import inverse_kinematics
+from .feet import reach_with_leg
 from ..synth.reach import heading_of, yaw_matrix
 
 FLIP = np.deg2rad(120.0)   # a heading change in one frame faster than this is the decoder's, not a turn
 SPREAD = 4                  # frames either side of a flip that share its turn
 
 
-def spread_flips(joints: np.ndarray, rotations: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+def spread_flips(joints: np.ndarray, rotations: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One person's local rotations (N, 22, 3, 3) fitted to joints (N, 22, 3) with bone offsets
     (22, 3), with every flip of the pelvis' heading spread over SPREAD frames either side: the
     heading eased linearly (the shorter way round) across, the pelvis' tilt and every other joint
-    refitted as before -> (N, 22, 3, 3). Clips without a flip come back as they are."""
+    refitted as before -> (rotations (N, 22, 3, 3), the frames changed (M,)). Clips without a
+    flip come back as they are."""
     n = len(rotations)
     heading = heading_of(rotations[:, 0, :, 2])                                 # the pelvis' forward (+Z)
     step = np.angle(np.exp(1j * np.diff(heading)))                              # (N-1,) wrapped
@@ -36,7 +39,7 @@ def spread_flips(joints: np.ndarray, rotations: np.ndarray, offsets: np.ndarray)
     for f, gap in zip(at, np.minimum(np.diff(at, prepend=-n), np.diff(at, append=2 * n))):
         flips[f] = gap > 2 * SPREAD
     if not flips.any():
-        return rotations
+        return rotations, np.zeros(0, int)
     # frames whose heading is eased: the flip's two frames and SPREAD either side of them
     around = binary_dilation(np.concatenate([flips, [False]]) | np.concatenate([[False], flips]),
                              iterations=SPREAD)
@@ -51,4 +54,13 @@ def spread_flips(joints: np.ndarray, rotations: np.ndarray, offsets: np.ndarray)
     root = yaw_matrix(eased[frames] - unwrapped[frames]) @ rotations[frames, 0]
     out = rotations.copy()
     out[frames] = inverse_kinematics(joints[frames], offsets, root=root)
-    return out
+    return out, frames
+
+
+def feet_kept(poses: np.ndarray, feet: np.ndarray) -> np.ndarray:
+    """Poses (M, 22, 3) whose pelvis turned with both legs re-solved from the turned hips to the
+    feet (M, 2, 3) they had before: refitted from the turned hips, the legs kept their
+    directions and the planted feet slid (a dancer skated in 5% of frames instead of 0.8%)."""
+    for side in range(2):
+        poses = reach_with_leg(poses, side, feet[:, side])
+    return poses

@@ -50,12 +50,14 @@ def test_the_preview_of_a_bundled_example_is_finished_like_the_full_motion(bundl
 
 def test_a_walk_sketched_at_30_fps_steps_as_often_as_at_20(bundle):
     """The model learnt motion at 20 fps; a 30 fps storyboard of the same scene must not come out
-    as the 20 fps motion squeezed into fewer seconds (before: 1.4x the step rate)."""
+    as the 20 fps motion squeezed into fewer seconds (before: 1.4x the step rate). Six seeds: the
+    count of one is chaotic (whether the feet walk a stretch or step it each on its own turns on
+    one-frame overlaps): seeds 0-1 gave 1.23 on one CPU and under 1.2 on another, seeds 0-5 1.15."""
     sb = Storyboard.load("resources/examples/carry_table.json")
 
     def steps_per_second(storyboard):
         rates = []
-        for seed in (0, 1):
+        for seed in range(6):
             clip = generate(storyboard, SamplerConfig(seed=seed), bundle).clips[0]
             height = clip.joints[:, :, list(FEET), 1]
             lifts = ((height[1:] > 0.07) & (height[:-1] <= 0.07)).sum()

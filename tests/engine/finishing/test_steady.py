@@ -107,7 +107,7 @@ def test_a_stretch_the_first_smoothing_would_make_pop_more_is_smoothed_less(monk
     import engine.finishing
     sb, clip = saved_generation("wrist_after_release")
     assert pop(finish(clip, sb).joints) < 0.085
-    monkeypatch.setattr(engine.finishing, "spread_flips", lambda joints, rotations, offsets: rotations)
+    monkeypatch.setattr(engine.finishing, "spread_flips", lambda joints, rotations, offsets: (rotations, np.zeros(0, int)))
     first_only = FinishConfig(steady=SteadyConfig(popping_weights=SteadyConfig().popping_weights[:1]))
     assert pop(finish(clip, sb, first_only).joints) > 0.1
     assert pop(finish(clip, sb).joints) < 0.085
