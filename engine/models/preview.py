@@ -1,7 +1,7 @@
 """The few-step preview student: the guided student's ODE distilled into a few jumps.
 
-The student takes 9 Heun steps, each two evaluations of a classifier-free guided field (two
-passes each): 18 evaluations. The preview student is the same network (initialised
+The student takes DEFAULT_STEPS Heun steps (5), each two evaluations of a classifier-free guided
+field (two passes each): 10 evaluations. The preview student is the same network (initialised
 from the student) trained so that one conditional call per step follows that guided ODE over
 a jump of 1 / K in t (K = ModelConfig.preview_steps), classifier-free guidance included:
 

@@ -16,8 +16,15 @@ STEADY_GUIDANCE_RATE = 5.0
 # one final energy step instead of two (text model; 20 synthesized, 20 artist-style, 40 sketch +
 # text, 3 real storyboards, one run): K3D 3.3 -> 3.4 cm, T3D 6.9 -> 6.8 cm, artist-style Pop
 # 8.3 -> 8.8 cm and lowest foot 5.6 -> 6.0 cm, sketch + text unchanged; 18% less CPU time per
-# generation (issue 20's 20x). BENCHMARKS.md shows "Ours, 30 steps" beside the default in every protocol.
-DEFAULT_STEPS = 9
+# generation (issue 20's 20x). 9 -> 5 steps, re-planning every 2nd step (shipped bundle, 20
+# synthesized, 20 artist-style, 20 sketch + text and 3 real storyboards, seeds 0 and 1): K3D
+# 3.2 -> 3.3 cm, T3D 5.6 -> 5.7 cm, real MPJPE 24.1 -> 23.7 cm and pelvis 19.8 -> 19.4 cm,
+# artist-style pops within 5 cm 26 -> 26 of 40 but skate over 3% 0 -> 3 of 40 (mean 0.3 -> 0.5%);
+# 25% less time (the bundled examples on a quiet machine 0.30-0.37 -> 0.23-0.26 s, the DDPM-1000
+# teacher 5.3-5.5 s: 16-18x -> 21-23x). Re-planning every 3rd step, or the preview student's
+# first jump before 3-5 Heun steps, missed real motion by 1.6-4.2 cm more (MPJPE).
+# BENCHMARKS.md shows "Ours, 30 steps" beside the default in every protocol.
+DEFAULT_STEPS = 5
 
 
 class SamplerError(ValueError):
@@ -47,7 +54,7 @@ class SamplerConfig:
     use_temporal_bias: bool = True  # trajectory attention bias ("w/o temporal bias")
     use_text: bool = True           # the storyboard's text, for a model that reads it ("sketch only")
     trajectory_only: bool = False   # only the trajectory energy ("trajectory-only")
-    ctmc_every: int = 3             # re-plan the phases after every k-th step (0: on the result only)
+    ctmc_every: int = 2             # re-plan the phases after every k-th step (0: on the result only)
     guidance_steps: int = 1         # energy steps on z0_hat per solver step
     guidance_start: float = 0.7     # guide only once t <= this (near noise the network re-predicts
                                     # z0_hat almost regardless of z, so early guidance is mostly lost)
