@@ -16,8 +16,8 @@ import numpy as np
 from scipy.ndimage import binary_dilation, label
 
 from ..skeleton import inverse_kinematics
-from .feet import reach_with_leg
 from ..synth.reach import heading_of, yaw_matrix
+from .feet import reach_with_leg
 
 FLIP = np.deg2rad(120.0)   # a heading change in one frame faster than this is the decoder's, not a turn
 SPREAD = 4                  # frames either side of a flip that share its turn
