@@ -11,7 +11,8 @@ that keep each person's bone lengths:
    round in a frame, its feet staying where they were while it turns (turns.py);
 2. keyposes, by motion warping (warp.py), and pelvis strokes walked on time (paths.py);
 3. feet standing on the ground, planted while in stance (where a keypose in the stance has the
-   foot), stepping between plants (one foot at a time: walk.py), the body lowering where it
+   foot), stepping between plants (one foot at a time: walk.py; a foot dragged along the floor
+   while the other stands lifted into a step), the body lowering where it
    stands too tall for its planted legs (feet.py);
 4. the object as a rigid body that moves only in the hands that hold it, resting clear of the
    people's legs otherwise (held.py), and the arms reaching its grips (or the partner's hand)

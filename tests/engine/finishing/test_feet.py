@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from engine.finishing import lasting_as_long
-from engine.finishing.feet import (HIPS, HOP_HEIGHT, KNEES, STRAIGHTEST, FeetConfig, _foot_goal, _lower_in_hops,
+from engine.finishing.feet import (HIPS, HOP_HEIGHT, KNEES, STRAIGHTEST, FeetConfig, _foot_goal, _lift_glides, _lower_in_hops,
                                   _with_room_to_step, lock_feet, reach_with_leg, settle_on_ground, stance_intervals)
 from engine.metrics import foot_skate_ratio
 from engine.skeleton import ANKLES, FEET, bone_lengths, rest_pose
@@ -188,6 +188,25 @@ def test_a_step_with_no_room_while_the_other_foot_stands_takes_a_brief_hop():
     busy[30:38] = True
     (_, end), (start, _) = _with_room_to_step([(0, 38), (42, 46)], foot, config, busy=busy)
     assert start - end >= 7
+
+
+def test_a_foot_gliding_fast_while_the_other_stands_is_lifted_into_a_step():
+    """The decoder drags a swinging foot along the floor at 1.5 m/s for 16 frames, too long a gap
+    for a made-up step: it rises with its speed, smoothly, where the other foot stands, and not
+    where that one is up too (a hop) or at a key (the warp's feet)."""
+    n, config = 40, FeetConfig()
+    glide = np.zeros((n, 3))
+    glide[:, 0] = 1.5 * np.clip(np.arange(n) - 10, 0, 16) / FPS
+    glide[:, 1] = config.foot_height
+    stand = np.array([0.0, config.foot_height, 0.2]) * np.ones((n, 1))
+    lifted, kept = _lift_glides([glide, stand], FPS, config)
+    y = lifted[:, 1]
+    assert y[13:24].min() > 0.07 and y[:9].max() == y[28:].max() == config.foot_height
+    assert np.abs(y[1:-1] - 0.5 * (y[:-2] + y[2:])).max() < config.step_pop       # no jolt
+    assert np.array_equal(lifted[:, [0, 2]], glide[:, [0, 2]]) and np.array_equal(kept, stand)
+    up = stand + [0.0, 0.1, 0.0]
+    assert np.array_equal(_lift_glides([glide, up], FPS, config)[0], glide)
+    assert _lift_glides([glide, stand], FPS, config, keys=[18])[0][18, 1] == config.foot_height
 
 
 def test_a_body_too_tall_for_its_planted_legs_crouches_until_the_feet_reach_the_ground():
