@@ -8,7 +8,7 @@ that keep each person's bone lengths:
    keys marked so (timing.py);
 1. one skeleton per person (bone offsets fitted to the generated joints; the decoder predicts
    joints freely, so bones stretch a little from frame to frame), its pelvis never turning half
-   round in a frame, its feet staying where they were while it turns (turns.py);
+   round in a frame (turns.py), its feet staying where they were while it turns;
 2. keyposes, by motion warping (warp.py), and pelvis strokes walked on time (paths.py);
 3. feet standing on the ground, planted while in stance (where a keypose in the stance has the
    foot), stepping between plants (one foot at a time: walk.py; a foot dragged along the floor
@@ -45,14 +45,14 @@ from ..storyboard import Storyboard
 from .clearance import clear_hands
 from .contacts import ContactConfig, object_anchors, reach_contacts
 from .crouch import crouch_to_grips
-from .feet import FeetConfig, lock_feet, settle_on_ground
+from .feet import FeetConfig, lock_feet, reach_with_legs, settle_on_ground
 from .held import hold_object, step_within_reach
 from .inferred import InferConfig, with_generated_contacts
 from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .steady import SteadyConfig, frame_pops, steady_body
 from .timing import retime_to_keys, with_hold_ends
-from .turns import feet_kept, spread_flips
+from .turns import spread_flips
 from .paths import PathConfig, follow_paths
 from .warp import BODY_PARTS, WarpConfig, scale_per_bone, sketched_scales, warp_to_keyposes
 
@@ -99,7 +99,7 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
     for h, (_, turned) in zip(people, spread):
         if len(turned):
             feet = forward_kinematics(root[turned, h], fitted[turned, h], offsets[h])[:, list(FEET)]
-            out[turned, h] = feet_kept(out[turned, h], feet)
+            out[turned, h] = reach_with_legs(out[turned, h], feet)   # a turn is made on the feet
     return out, offsets
 
 

@@ -21,7 +21,7 @@ from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from ..synth.reach import UP
 from .contacts import ContactConfig, arm_lengths, forward_of, object_anchors, span_weight
-from .feet import reach_with_leg
+from .feet import reach_with_legs
 from .held import BODY_SPHERES
 from .keys import key_frames
 from .limbs import DEEPER
@@ -43,10 +43,7 @@ def _cone(values: np.ndarray, rate: float, up: bool) -> np.ndarray:
 
 def _crouched(poses: np.ndarray, drop: np.ndarray) -> np.ndarray:
     """One person's poses (M, 22, 3) lowered by drop (M,), the legs re-solved to the same feet."""
-    out = poses - drop[:, None, None] * UP
-    for side, foot in enumerate(FEET):
-        out = reach_with_leg(out, side, poses[:, foot])
-    return out
+    return reach_with_legs(poses - drop[:, None, None] * UP, poses[:, list(FEET)])
 
 
 def _depth(poses: np.ndarray, objects: tuple[np.ndarray, list], partners: np.ndarray | None = None) -> np.ndarray:

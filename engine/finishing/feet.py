@@ -388,16 +388,18 @@ def _lift_glides(goals: list[np.ndarray], fps: float, config: FeetConfig, keys: 
     n = len(goals[0])
     away = 1.0 - closeness_to_keys(n, list(keys), config.blend_frames) if len(keys) else np.ones(n)
     out = [g.copy() for g in goals]
+
+    def eased_into(frames: np.ndarray) -> np.ndarray:   # (N,) bool -> 0 outside, 1 two glide_frames in
+        return smoothstep(np.clip(distance_transform_edt(frames) / (2.0 * config.glide_frames), 0.0, 1.0))
+
     for side in range(2):
         standing = goals[1 - side][:, 1] <= config.stance_height
-        inside = smoothstep(np.clip(distance_transform_edt(standing) / (2.0 * config.glide_frames), 0.0, 1.0))
         speed = norm(np.gradient(goals[side][:, [0, 2]], axis=0)) * fps if n > 1 else np.zeros(n)
         runs, count = label((goals[side][:, 1] < config.stance_height) & (speed > slow))
         lengths = np.bincount(runs.ravel(), minlength=count + 1)
         gliding = (runs > 0) & (lengths[runs] >= config.min_glide_frames)   # not a swing's lift-off or landing
-        within = smoothstep(np.clip(distance_transform_edt(gliding) / (2.0 * config.glide_frames), 0.0, 1.0))
         rise = smoothstep(np.clip((speed - slow) / (fast - slow), 0.0, 1.0))
-        lift = (config.step_height - config.foot_height) * rise * within * inside * away
+        lift = (config.step_height - config.foot_height) * rise * eased_into(gliding) * eased_into(standing) * away
         out[side][:, 1] = np.maximum(goals[side][:, 1], config.foot_height + lift)
     return out
 
@@ -450,3 +452,11 @@ def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.nd
     out[:, knee], out[:, ankle] = two_bone_ik(poses[:, hip], poses[:, hip] + reach, upper, lower, pole)
     out[:, toe] = out[:, ankle] + foot_offset
     return out
+
+
+def reach_with_legs(poses: np.ndarray, feet: np.ndarray) -> np.ndarray:
+    """Poses (M, 22, 3) with both legs re-solved from their hips (reach_with_leg) to the feet
+    (M, 2, 3), left then right -> (M, 22, 3)."""
+    for side in range(2):
+        poses = reach_with_leg(poses, side, feet[:, side])
+    return poses

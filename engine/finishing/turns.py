@@ -6,9 +6,9 @@ reverses between two frames (a 170-degree turn in 50 ms). The rigid skeleton fit
 the whole lower body at once, and the feet's plants re-solved after it swung a knee 50 cm in a
 frame. Here such a flip of the pelvis' heading, far faster than any person turns (a real salsa
 dancer's fastest, 230 degrees in three frames, is 77 a frame), is spread over the frames either
-side of it, the rest of the skeleton refitted to the same joints from the turned pelvis, and
-the legs re-solved to the feet the unturned fit had (a turn is made on the feet). Joint arrays
-are one person's, (N, 22, 3) in metres.
+side of it, the rest of the skeleton refitted to the same joints from the turned pelvis (the
+caller puts the turned legs back on the feet the unturned fit had). Joint arrays are one
+person's, (N, 22, 3) in metres.
 """
 from __future__ import annotations
 
@@ -17,7 +17,6 @@ from scipy.ndimage import binary_dilation, label
 
 from ..skeleton import inverse_kinematics
 from ..synth.reach import heading_of, yaw_matrix
-from .feet import reach_with_leg
 
 FLIP = np.deg2rad(120.0)   # a heading change in one frame faster than this is the decoder's, not a turn
 SPREAD = 4                  # frames either side of a flip that share its turn
@@ -55,12 +54,3 @@ def spread_flips(joints: np.ndarray, rotations: np.ndarray, offsets: np.ndarray)
     out = rotations.copy()
     out[frames] = inverse_kinematics(joints[frames], offsets, root=root)
     return out, frames
-
-
-def feet_kept(poses: np.ndarray, feet: np.ndarray) -> np.ndarray:
-    """Poses (M, 22, 3) whose pelvis turned with both legs re-solved from the turned hips to the
-    feet (M, 2, 3) they had before: refitted from the turned hips, the legs kept their
-    directions and the planted feet slid (a dancer skated in 5% of frames instead of 0.8%)."""
-    for side in range(2):
-        poses = reach_with_leg(poses, side, feet[:, side])
-    return poses

@@ -1,7 +1,8 @@
 """A pelvis heading that flips in a frame is spread over the frames around it, on the same feet; spins stay."""
 import numpy as np
 
-from engine.finishing.turns import FLIP, SPREAD, feet_kept, spread_flips
+from engine.finishing.feet import reach_with_legs
+from engine.finishing.turns import FLIP, SPREAD, spread_flips
 from engine.skeleton import ANKLES, FEET, HIPS, KNEES, REST_OFFSETS, REST_PELVIS_HEIGHT, forward_kinematics, inverse_kinematics
 from engine.synth.reach import heading_of, yaw_matrix
 
@@ -50,7 +51,7 @@ def test_the_legs_of_a_turned_pelvis_keep_their_feet():
     rotations[:, 0] = yaw_matrix(np.deg2rad(np.linspace(10.0, 60.0, n)))
     turned = forward_kinematics(root, rotations)                      # the whole body turned, feet swung round
     assert np.linalg.norm(turned[:, list(FEET)] - feet, axis=-1).max() > 0.05
-    kept = feet_kept(turned, feet)
+    kept = reach_with_legs(turned, feet)
     assert np.linalg.norm(kept[:, list(FEET)] - feet, axis=-1).max() < 1e-3
     legs = [(h, k) for h, k in zip(HIPS, KNEES)] + [(k, a) for k, a in zip(KNEES, ANKLES)]
     for a, b in legs:
