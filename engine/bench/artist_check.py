@@ -5,7 +5,8 @@ at c6a022e, 60 further ones failed far more often (grips within 3 cm: 20 of 20 a
 This check generates Ours (seed 0) on scenes `--first` to `--first + --scenes` of the held-out
 scenes, drawn both ways (engine.artist_sketch), and prints, for each of ANIMATOR_TARGETS, how many
 storyboards meet it, the mean and the worst, and how far the held object drops where a hand lets
-go of it for good (the held-out motion sets it down). About 1.5 s a storyboard on 2 cores.
+go of it for good (the held-out motion sets it down), and what Wrist@key is made of
+(wrist_key_parts). About 1.5 s a storyboard on 2 cores.
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from ..finishing.held import true_spans
 from ..generate import generate
 from ..models.bundle import load_default
 from ..sampling.config import sampler_config
-from .animator import ANIMATOR_TARGETS
+from .animator import ANIMATOR_TARGETS, WRISTS
 from .protocol import ProtocolConfig, build_protocols
 from .runner import sample_metrics
 
@@ -37,6 +38,24 @@ def release_drops(clip, storyboard) -> list[float]:
     return [float(height[end] - height.min()) for _, end in true_spans(held) if end < len(height) - 3]
 
 
+def wrist_key_parts(joints: np.ndarray, reference: np.ndarray, storyboard) -> tuple[float, float, float] | None:
+    """Means (m) over the wrists the keys place, joints and reference (N, H, 22, 3): how far the
+    drawn point is from the held-out wrist in the sketch plane, how far the generated wrist is from
+    the drawn point there, and how far the generated wrist is from the held-out one in depth (the
+    2D sketch does not give it). None without such a wrist. Wrist@key is 3D against the held-out
+    wrist: a drawing off the held-out pose is a miss the generation cannot help."""
+    camera, parts = storyboard.camera, []
+    back = camera.basis()[2]
+    for k in storyboard.keyposes:
+        h = storyboard.agent_index(k.agent)
+        for j in WRISTS:
+            if k.mask[j]:
+                made, held_out = joints[k.frame, h, j], reference[k.frame, h, j]
+                parts.append((np.linalg.norm(k.points[j] - camera.project(held_out)),
+                              np.linalg.norm(camera.project(made) - k.points[j]), abs((made - held_out) @ back)))
+    return tuple(np.mean(parts, axis=0)) if parts else None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--first", type=int, default=20, help="first held-out scene (bench uses 0-9)")
@@ -45,16 +64,23 @@ def main(argv: list[str] | None = None) -> int:
     config = ProtocolConfig(per_scenario=1, noise_scenes=0, real_windows=0, artist_scenes=args.first + args.scenes)
     artist = next(p for p in build_protocols(config) if p.name == "artist")
     items = artist.items[2 * args.first:]
-    bundle, rows, drops = load_default(), [], []
+    bundle, rows, drops, wrists = load_default(), [], [], []
     for item in items:
         clip = generate(item.storyboard, sampler_config(seed=0), bundle, quiet=True).clips[0]
         rows.append(sample_metrics(clip, item))
         drops += release_drops(clip, item.storyboard)
+        wrists.append(wrist_key_parts(np.asarray(clip.joints, float), np.asarray(item.reference.joints, float),
+                                      item.storyboard))
     print(f"{len(items)} artist-style storyboards (scenes {args.first}-{args.first + args.scenes - 1}), Ours, seed 0")
     for name, bound in ANIMATOR_TARGETS.items():
         values = np.array([r[name] for r in rows])
         print(f"{name:10s} within {bound:g}: {np.sum(values <= bound):3d}/{len(values)}   "
               f"mean {values.mean():.4f}   worst {values.max():.3f}")
+    parts = [p for p in wrists if p is not None]
+    if parts:
+        drawn, placed, depth = np.mean(parts, axis=0)
+        print(f"Wrist@key  of it: drawn off the held-out wrist {drawn:.4f} (sketch plane), generated off the "
+              f"drawing {placed:.4f}, off the held-out wrist in depth {depth:.4f} (means)")
     if drops:
         print(f"releases   dropped over {DROP:g} m: {np.sum(np.array(drops) > DROP):3d}/{len(drops)}   "
               f"mean {np.mean(drops):.4f}   worst {np.max(drops):.3f}")

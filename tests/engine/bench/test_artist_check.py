@@ -1,10 +1,13 @@
-"""The artist-style check (engine.bench.artist_check): a put-down is told from a drop."""
+"""The artist-style check (engine.bench.artist_check): a put-down is told from a drop, and a
+wrist's miss at its key is told apart (the drawing's, the sketch plane's, depth)."""
 import numpy as np
 
-from engine.bench.artist_check import release_drops
+from engine.bench.artist_check import release_drops, wrist_key_parts
+from engine.camera import StoryboardCamera
 from engine.clip import MotionClip
 from engine.objects import ObjectSpec
-from engine.storyboard import Agent, Contact, SceneObject, Storyboard
+from engine.skeleton import JOINT_INDEX
+from engine.storyboard import Agent, Contact, Keypose, SceneObject, Storyboard
 
 N = 30
 
@@ -35,3 +38,21 @@ def test_a_hold_to_the_end_is_no_release():
     clip, sb = carried(heights)
     sb.contacts = [Contact("A", "left", 5, N - 1, "box", 0)]
     assert release_drops(clip, sb) == []
+
+
+def test_a_wrist_miss_is_split_into_the_drawing_the_sketch_plane_and_depth():
+    camera = StoryboardCamera(20.0, 30.0)
+    right, up, back = camera.basis()
+    wrist = JOINT_INDEX["l_wrist"]
+    reference = np.zeros((N, 1, 22, 3))
+    reference[10, 0, wrist] = [0.3, 1.0, 0.2]
+    joints = reference.copy()
+    joints[10, 0, wrist] += 0.05 * up + 0.2 * back           # 5 cm up in the sketch, 20 cm deeper
+    mask = np.zeros(22, bool)
+    mask[wrist] = True
+    points = np.zeros((22, 2))
+    points[wrist] = camera.project(reference[10, 0, wrist]) + [0.03, 0.0]   # drawn 3 cm right
+    sb = Storyboard(length=N, agents=[Agent("A")], keyposes=[Keypose("A", 10, points, mask)], camera=camera)
+    np.testing.assert_allclose(wrist_key_parts(joints, reference, sb), [0.03, np.hypot(0.03, 0.05), 0.2], atol=1e-9)
+    sb.keyposes = []
+    assert wrist_key_parts(joints, reference, sb) is None

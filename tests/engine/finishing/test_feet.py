@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from engine.finishing import lasting_as_long
+from engine.finishing.blend import ease_frames
 from engine.finishing.feet import (HIPS, HOP_HEIGHT, KNEES, STRAIGHTEST, FeetConfig, _foot_goal, _lift_glides, _lower_in_hops,
                                   _with_room_to_step, lock_feet, reach_with_leg, settle_on_ground, stance_intervals)
 from engine.metrics import foot_skate_ratio
@@ -62,8 +63,9 @@ def test_planted_foot_holds_still_unless_out_of_reach(clean):
     held = stance = 0
     for h in range(out.shape[1]):
         busy = np.ones(len(joints), bool)                  # as lock_feet: the right foot's steps
-        for hip, knee, ankle, foot in zip(HIPS, KNEES, ANKLES, FEET):   # wait for the left's
-            intervals = stance_intervals(joints[:, h, foot], FPS, busy=None if foot == FEET[0] else busy)
+        for hip, knee, ankle, foot, other in zip(HIPS, KNEES, ANKLES, FEET, FEET[::-1]):   # wait for the left's
+            intervals = stance_intervals(joints[:, h, foot], FPS, busy=None if foot == FEET[0] else busy,
+                                         other=joints[:, h, other])
             for start, stop in intervals:
                 busy[start:stop] = False
             reach = (np.linalg.norm(out[:, h, knee] - out[:, h, hip], axis=-1)
@@ -188,6 +190,20 @@ def test_a_step_with_no_room_while_the_other_foot_stands_takes_a_brief_hop():
     busy[30:38] = True
     (_, end), (start, _) = _with_room_to_step([(0, 38), (42, 46)], foot, config, busy=busy)
     assert start - end >= 7
+
+
+def test_a_fast_swing_of_the_foots_own_gets_frames_enough_to_leave_and_land_slowly():
+    """The decoder's stride: planted until frame 20, over 0.8 m by frame 25, lifting 10 cm. Its
+    plants give it frames enough to jolt at most swing_pop (held to them, it spiked 6-12 cm)."""
+    n, config = 40, FeetConfig()
+    foot = np.full((n, 3), [0.0, config.foot_height, 0.0])
+    s = np.arange(1, 5) / 5
+    foot[20:24] = np.stack([0.8 * s, config.foot_height + 0.1 * np.sin(np.pi * s), 0 * s], -1)
+    foot[24:, 0] = 0.8
+    (_, end), (start, _) = _with_room_to_step([(3, 20), (24, 37)], foot, config)
+    need = ease_frames(0.8, config.swing_pop, config.step_frames, config.max_step_frames)
+    assert start - end >= need > 4
+    assert _with_room_to_step([(3, 20), (24, 37)], foot, config, keys=[19, 24]) == [(3, 20), (24, 37)]
 
 
 def test_a_foot_gliding_fast_while_the_other_stands_is_lifted_into_a_step():
