@@ -21,7 +21,7 @@ that keep each person's bone lengths:
    reach of crouches and leans to them (crouch.py): a box let go of is put down, not dropped;
    for an object the storyboard gives
    no contact, the holds are the generated motion's (inferred.py); hands out of a hold pushed
-   out of the objects they sink into (clearance.py);
+   out of the objects they sink into (clearance.py), knees swivelled out of them (swivel.py);
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
    bone lengths (limbs.py);
 6. the whole body smoothed where it still pops, what the stages above made exact held
@@ -30,7 +30,7 @@ that keep each person's bone lengths:
    smoothed once more (limbs.py), never deeper into an object.
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
 A preview is finished without the clean-up (FinishConfig.polish): the step and crouch of 4, the
-elbow swivel, the hands pushed out of objects and the smoothing of 5 and 6.
+elbow and knee swivels, the hands pushed out of objects and the smoothing of 5 and 6.
 """
 from __future__ import annotations
 
@@ -51,6 +51,7 @@ from .inferred import InferConfig, with_generated_contacts
 from .keys import key_frames
 from .limbs import LimbConfig, steady_limbs, steady_rotations
 from .steady import SteadyConfig, frame_pops, steady_body
+from .swivel import clear_knees
 from .timing import retime_to_keys, with_hold_ends
 from .turns import spread_flips
 from .paths import PathConfig, follow_paths
@@ -76,8 +77,8 @@ class FinishConfig:
     last_limbs: LimbConfig = field(default_factory=lambda: LimbConfig(tolerance=0.01))
     steady: SteadyConfig = field(default_factory=SteadyConfig)
     # The clean-up an animator does without while dragging, 60% of the finishing's time: the step
-    # and crouch to grips out of reach, elbows swivelled off the objects and hands pushed out, and
-    # the smoothing of pops (limbs.py, steady.py). A preview leaves it out (sampler_config); keys,
+    # and crouch to grips out of reach, elbows and knees swivelled off the objects, hands pushed
+    # out and the smoothing of pops (limbs.py, steady.py). A preview leaves it out (sampler_config); keys,
     # paths, planted feet and the object in the hands stay exact.
     polish: bool = True
 
@@ -163,9 +164,10 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
 def _polished(joints: np.ndarray, offsets: np.ndarray, obj_pose: np.ndarray | None, storyboard: Storyboard,
               config: FinishConfig) -> np.ndarray:
     """Hands out of the objects (obj_pose (N, O, 7) or None) and pops smoothed: joints (N, H, 22, 3)."""
-    if obj_pose is not None:
-        joints = clear_hands(joints, obj_pose, storyboard, config.contact.clear_frames)
     objects = None if obj_pose is None else (obj_pose, [o.spec for o in storyboard.objects])
+    if objects is not None:
+        joints = clear_hands(clear_knees(joints, *objects, config.contact), obj_pose, storyboard,
+                             config.contact.clear_frames)
     joints = steady_body(steady_limbs(joints, config.limbs, objects), offsets, storyboard, config.steady)
     if obj_pose is not None:
         # The steadying smooths the pops that a push out of an object makes, and so can put the

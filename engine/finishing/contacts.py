@@ -22,7 +22,7 @@ from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Contact, Storyboard
 from ..synth.reach import UP, continuous_pole, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
-from .swivel import swivel_clear
+from .swivel import frame_runs, swivel_clear
 
 
 @dataclass
@@ -161,15 +161,6 @@ def _contact_targets(joints: np.ndarray, obj_anchors: np.ndarray | None, storybo
     return target, weight
 
 
-def _arm_runs(frames: np.ndarray, people: np.ndarray) -> list[np.ndarray]:
-    """Index arrays into (frames, people) (M,) of each person's runs of consecutive frames."""
-    runs = []
-    for h in np.unique(people):
-        index = np.flatnonzero(people == h)                       # in frame order
-        runs += np.split(index, np.flatnonzero(np.diff(frames[index]) > 1) + 1)
-    return runs
-
-
 def reach_contacts(joints: np.ndarray, obj_anchors: np.ndarray | None, storyboard: Storyboard,
                    config: ContactConfig = ContactConfig(), obj_pose: np.ndarray | None = None,
                    swivel: bool = True) -> np.ndarray:
@@ -215,7 +206,7 @@ def reach_with_arms(joints: np.ndarray, target: np.ndarray, weight: np.ndarray, 
         if obj_pose is not None and moving.any():
             frames, people = np.nonzero(moving)
             new_elbow = swivel_clear(shoulder, new_elbow, new_wrist, obj_pose[frames],
-                                     [o.spec for o in storyboard.objects], config, _arm_runs(frames, people))
+                                     [o.spec for o in storyboard.objects], config, frame_runs(frames, people))
         out[..., ELBOWS[side], :][moving] = new_elbow
         out[..., HANDS[side], :][moving] = new_wrist
     return out

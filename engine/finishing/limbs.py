@@ -21,7 +21,7 @@ from ..geometry.rotations import matrix_to_6d, norm, normalize, sixd_to_matrix
 from ..objects import ObjectSpec
 from ..skeleton import ELBOWS, JOINT_INDEX, forward_kinematics
 from .blend import smooth_path, spike
-from .swivel import arm_penetration
+from .swivel import limb_penetration
 
 DEEPER = 0.002   # m; an elbow the smoothing takes further into an object than this stays
 LIMBS = tuple(tuple(JOINT_INDEX[f"{side}_{joint}"] for joint in chain)
@@ -97,7 +97,7 @@ def _not_deeper(shoulder: np.ndarray, elbow: np.ndarray, moved: np.ndarray, wris
             continue
         ends = shoulder[changed, h, None], wrist[changed, h, None]
         both = np.stack([elbow[changed, h], moved[changed, h]], 1)
-        depth = arm_penetration(ends[0], both, ends[1], obj_pose[changed], specs)   # (M, 2)
+        depth = limb_penetration(ends[0], both, ends[1], obj_pose[changed], specs)   # (M, 2)
         deeper = changed[depth[:, 1] > depth[:, 0] + DEEPER]
         out[deeper, h] = elbow[deeper, h]
     return out

@@ -8,7 +8,7 @@ from engine.bench.animator import pop
 from engine.finishing import finish
 from engine.finishing.blend import smooth_correction, smooth_path
 from engine.finishing.limbs import LIMBS, LimbConfig, on_circle, steady_limbs, steady_rotations
-from engine.finishing.swivel import arm_penetration
+from engine.finishing.swivel import limb_penetration
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.objects import ObjectSpec
 from engine.skeleton import JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
@@ -83,7 +83,7 @@ def test_an_elbow_is_not_smoothed_into_an_object():
     pose[:, 0, :3] = clean[40, 0, elbow] - [0.0, 0.06, 0.0]              # around where it was
     def depth(joints):
         s, e, w = (joints[:, 0, JOINT_INDEX[f"l_{j}"]][:, None] for j in ("shoulder", "elbow", "wrist"))
-        return arm_penetration(s, e, w, pose, [box])[:, 0]
+        return limb_penetration(s, e, w, pose, [box])[:, 0]
     assert depth(steady_limbs(popped))[40] > 0.03                         # smoothed back into the box
     kept = steady_limbs(popped, objects=(pose, [box]))
     assert (depth(kept) <= depth(popped) + 0.002).all()
