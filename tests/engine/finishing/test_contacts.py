@@ -293,6 +293,36 @@ def test_one_holder_turns_the_object_with_their_chest_not_their_wrists():
     np.testing.assert_allclose(yaw[30] - yaw[0], turn[30], atol=0.05)
 
 
+def test_two_carriers_turn_the_object_with_the_line_between_them_not_their_wrists(carry):
+    """Their hands circle half a turn about the box and back over 15 frames (as warped hands can):
+    the box stays; the two of them turning a quarter about it turn it with them."""
+    sb, joints, pose = carry[:3]
+    n = len(joints)
+    both = np.ones(n, bool)
+    for agent in sb.agents:
+        mine = np.zeros(n, bool)
+        for c in sb.contacts:
+            if c.agent == agent.id:
+                mine[c.start:c.end + 1] = True
+        both &= mine
+    shared = np.flatnonzero(both)
+    window = shared[len(shared) // 2 - 7:len(shared) // 2 + 8]
+    wrists = list(HANDS)
+    base = np.unwrap(_yaw_of(hold_object(joints, pose, sb)[:, 0, 3:]))
+    twisted = joints.copy()
+    centre = joints[window][:, :, wrists].mean(axis=(1, 2))[:, None, None]          # (15, 1, 1, 3)
+    spin = np.pi * np.sin(np.pi * np.arange(1, 16) / 16)
+    twisted[window[:, None], :, wrists] = np.swapaxes(
+        centre + np.einsum("nij,nhkj->nhki", yaw_matrix(spin), joints[window][:, :, wrists] - centre), 1, 2)
+    yaw = np.unwrap(_yaw_of(hold_object(twisted, pose, sb)[:, 0, 3:]))
+    assert np.abs(yaw - base)[window].max() < 0.15
+    middle = joints[shared][:, :, wrists].mean(axis=(0, 1, 2))
+    turn = np.linspace(0.0, np.pi / 2, n)
+    turning = middle + np.einsum("nij,nhkj->nhki", yaw_matrix(turn), joints - middle)
+    yaw = np.unwrap(_yaw_of(hold_object(turning, pose, sb)[:, 0, 3:]))
+    np.testing.assert_allclose((yaw - base)[shared], turn[shared], atol=0.1)
+
+
 def test_no_objects():
     sb, joints = one_person()
     sb.objects, sb.contacts = [], [Contact("A", "left", 15, 19, other_agent="A", other_hand="right")]
