@@ -102,14 +102,18 @@ def _depth(j: int) -> int:
     return 0 if PARENTS[j] < 0 else 1 + _depth(PARENTS[j])
 
 
-def _ik_levels() -> tuple:
+def _ik_levels(needed: range | tuple = range(NUM_JOINTS)) -> tuple:
     """The tree a level at a time: per depth, its joints with one child (their parents, their
-    children), and its joints with several (pelvis, spine3). IK walks it so, 8 batched steps
-    instead of 17 joint by joint: the finishing runs IK about ten times per generation on small
-    batches, where numpy's cost per call rules."""
+    children), and its joints with several (pelvis, spine3); only the `needed` joints and their
+    ancestors. IK walks it so, 8 batched steps instead of 17 joint by joint: the finishing runs IK
+    about ten times per generation on small batches, where numpy's cost per call rules."""
+    def ancestors(j: int) -> set[int]:
+        return {j} | (ancestors(PARENTS[j]) if PARENTS[j] >= 0 else set())
+
+    kept = set().union(*(ancestors(j) for j in needed))
     levels = []
-    for depth in range(1 + max(_depth(j) for j in range(NUM_JOINTS))):
-        at = [j for j in range(NUM_JOINTS) if _depth(j) == depth]
+    for depth in range(1 + max(_depth(j) for j in kept)):
+        at = [j for j in sorted(kept) if _depth(j) == depth and CHILDREN[j]]
         chain = [j for j in at if len(CHILDREN[j]) == 1]
         levels.append((np.array(chain, int), np.array([PARENTS[j] for j in chain], int),
                        np.array([CHILDREN[j][0] for j in chain], int), [j for j in at if len(CHILDREN[j]) > 1]))
@@ -117,6 +121,8 @@ def _ik_levels() -> tuple:
 
 
 _IK_LEVELS = _ik_levels()
+_BRANCHING = tuple(j for j in range(NUM_JOINTS) if len(CHILDREN[j]) > 1)   # pelvis, spine3
+_BRANCH_LEVELS = _ik_levels(_BRANCHING)   # what fit_offsets needs: the branching joints' frames
 
 
 def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS,
@@ -129,12 +135,20 @@ def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS,
     child; joints with several children (pelvis, spine3) get the Kabsch fit of all child
     bones; leaf joints get the identity. Exact when bone geometry matches `offsets`.
     """
+    return _walk_ik(joints, offsets, root, _IK_LEVELS)[0]
+
+
+def _walk_ik(joints: np.ndarray, offsets: np.ndarray, root: np.ndarray | None,
+             levels: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """inverse_kinematics over `levels` (_ik_levels) -> (local (..., 22, 3, 3), global rotations
+    (..., 23, 3, 3), the last the root's parent's); joints outside the levels are left identity
+    (local) or undefined (global)."""
     offsets = np.broadcast_to(offsets, joints.shape)
     lead = joints.shape[:-2]
     local = np.broadcast_to(np.eye(3), lead + (NUM_JOINTS, 3, 3)).copy()
     glob = np.empty(lead + (NUM_JOINTS + 1, 3, 3))   # the extra last entry is the root's parent, index -1
     glob[..., NUM_JOINTS, :, :] = np.eye(3)
-    for chain, parents, kids, branching in _IK_LEVELS:
+    for chain, parents, kids, branching in levels:
         if len(chain):
             parent_glob = glob[..., parents, :, :]
             # Child bone directions expressed in the parent's frame (undo the parent's rotation).
@@ -149,7 +163,7 @@ def inverse_kinematics(joints: np.ndarray, offsets: np.ndarray = REST_OFFSETS,
             R_local = root if j == 0 and root is not None else kabsch(offsets[..., kids_j, :], target)
             local[..., j, :, :] = R_local
             glob[..., j, :, :] = parent_glob @ R_local
-    return local
+    return local, glob
 
 
 def fit_offsets(joints: np.ndarray, iterations: int = 3) -> np.ndarray:
@@ -163,10 +177,9 @@ def fit_offsets(joints: np.ndarray, iterations: int = 3) -> np.ndarray:
     lengths = np.median(bone_lengths(joints), axis=0)
     offsets = normalize(REST_OFFSETS) * lengths[..., None]
     offsets[..., 0, :] = 0.0
-    branching = [j for j in range(NUM_JOINTS) if len(CHILDREN[j]) > 1]
     for _ in range(iterations):
-        glob = global_rotations(inverse_kinematics(joints, offsets))
-        for j in branching:
+        glob = _walk_ik(joints, offsets, None, _BRANCH_LEVELS)[1]
+        for j in _BRANCHING:
             for c in CHILDREN[j]:
                 local = np.einsum("...ji,...j->...i", glob[..., j, :, :], joints[..., c, :] - joints[..., j, :])
                 offsets[..., c, :] = np.mean(local, axis=0)
