@@ -11,6 +11,7 @@ out of something (`eased_push`) must never fall short instead: it eases as an en
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import cache
 
 import numpy as np
 from scipy.linalg import solveh_banded
@@ -69,15 +70,19 @@ def spike(path: np.ndarray) -> np.ndarray:
     return out
 
 
+@cache
+def _smoothstep_spike(frames: int) -> float:
+    """The largest spike of a unit smoothstep over `frames` in-between frames, still ends included."""
+    s = np.arange(frames + 2) / (frames + 1)
+    path = np.concatenate([[0.0], smoothstep(s), [1.0]])
+    return float(np.abs(path[1:-1] - 0.5 * (path[:-2] + path[2:])).max())
+
+
 def ease_frames(distance: float, pop: float, shortest: int, longest: int) -> int:
     """Frames (in [shortest, longest]) a smoothstep from one still place to another `distance`
     away needs so that it spikes (off its neighbours' midpoint, still ends included) at most `pop`."""
-    for frames in range(shortest, longest):
-        s = np.arange(frames + 2) / (frames + 1)
-        path = np.concatenate([[0.0], smoothstep(s), [1.0]])
-        if distance * np.abs(path[1:-1] - 0.5 * (path[:-2] + path[2:])).max() <= pop:
-            return frames
-    return max(longest, shortest)
+    return next((frames for frames in range(shortest, longest) if distance * _smoothstep_spike(frames) <= pop),
+                max(longest, shortest))
 
 
 def ease_jumps(values: np.ndarray, at: list[int], frames_for: Callable[[float], int]) -> np.ndarray:
