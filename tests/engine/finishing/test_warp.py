@@ -10,7 +10,8 @@ from engine.finishing import consistent_skeleton, finish
 from engine.finishing.keys import spread
 from engine.finishing.limbs import LIMBS
 from engine.finishing.steady import SteadyConfig, frame_pops
-from engine.finishing.warp import BODY_PARTS, scale_per_bone, sketched_scales, solve_keypose, warp_to_keyposes
+from engine.finishing.warp import (BODY_PARTS, WarpConfig, scale_per_bone, sketched_scales, solve_keypose,
+                                  warp_to_keyposes)
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.metrics import keypose_errors_2d
 from engine.skeleton import ELBOWS, HANDS, JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
@@ -116,6 +117,25 @@ def test_a_keypose_whose_depths_are_known_is_solved_at_them(scene):
     assert np.linalg.norm(guessed - truth, axis=-1).max() > 0.2
     assert np.linalg.norm(known - truth, axis=-1).max() < 0.03
     np.testing.assert_allclose(sb.camera.project(known), uv, atol=1e-9)
+
+
+def test_a_sketched_ankle_the_generated_depths_would_sink_stays_above_the_floor_on_its_drawn_point(scene):
+    """Seen from above, an ankle whose generated depth is behind its drawn foot's lies lower on
+    its ray: solved by the generated depth differences, posed heels sank 8 cm into the floor."""
+    clip, sb = scene
+    joints, offsets = consistent_skeleton(clip.joints.astype(float))
+    back = sb.camera.basis()[2]
+    ankle = JOINT_INDEX["l_ankle"]
+    key = next(k for k in sb.keyposes if k.mask[ankle] and joints[k.frame, sb.agent_index(k.agent), 10, 1] < 0.05)
+    h = sb.agent_index(key.agent)
+    generated = joints[key.frame, h].copy()
+    generated[ankle] -= 0.4 * back                       # the ankle further along its ray, away from the camera
+    lengths = np.linalg.norm(offsets[h], axis=-1)
+    posed = solve_keypose(generated, key.points, key.mask, sb.camera, lengths)
+    sunk = solve_keypose(generated, key.points, key.mask, sb.camera, lengths, WarpConfig(ankle_floor=-np.inf))
+    assert sunk[ankle, 1] < 0.0                           # where the depth differences alone put it
+    assert posed[ankle, 1] >= WarpConfig().ankle_floor - 1e-9
+    np.testing.assert_allclose(sb.camera.project(posed)[key.mask], key.points[key.mask], atol=1e-9)
 
 
 def test_solve_keypose_slides_the_arms_with_the_body_when_the_spine_and_collars_are_unplaced(scene):
