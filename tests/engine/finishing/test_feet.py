@@ -4,8 +4,8 @@ import pytest
 
 from engine.finishing import lasting_as_long
 from engine.finishing.blend import ease_frames
-from engine.finishing.feet import (HIPS, HOP_HEIGHT, KNEES, STRAIGHTEST, FeetConfig, _foot_goal, _lift_glides, _lower_in_hops,
-                                  _with_room_to_step, lock_feet, reach_with_leg, settle_on_ground, stance_intervals)
+from engine.finishing.feet import (HIPS, HOP_HEIGHT, KNEES, STRAIGHTEST, FeetConfig, _foot_goal, _foot_turn_smoothed,
+                                  _lift_glides, _lower_in_hops, _with_room_to_step, lock_feet, reach_with_leg, settle_on_ground, stance_intervals)
 from engine.metrics import foot_skate_ratio
 from engine.skeleton import ANKLES, FEET, bone_lengths, rest_pose
 from engine.synth import SCENARIOS, synthesize
@@ -277,6 +277,27 @@ def test_a_foot_released_at_swing_speed_leaves_and_lands_slowly():
     np.testing.assert_allclose(goal[:20], foot[:20], atol=1e-9)
     np.testing.assert_allclose(goal[25:], foot[25:], atol=1e-9)
     assert distance_to_path(goal, foot).max() < 1e-6
+
+
+def test_a_heel_that_rises_in_one_frame_turns_the_foot_over_a_few_frames_by_a_centimetre_at_most():
+    """The decoder's heel rises as its foot leaves the plant: on a foot held planted and then
+    lifted in the same frame, the ankle spiked more than the foot. The foot's direction about
+    its ankle is smoothed, its length kept, and no frame turned by more than most_foot_turn."""
+    config, n = FeetConfig(), 20
+    poses = np.repeat(rest_pose()[None], n, axis=0)
+    toe, ankle = FEET[1], ANKLES[1]
+    foot = poses[:, toe] - poses[:, ankle]
+    heel_up = np.where(np.arange(n) < 10, 0.0, 0.5)                              # radians, about x
+    c, s = np.cos(heel_up), np.sin(heel_up)
+    poses[:, toe] = poses[:, ankle] + np.stack([foot[:, 0], c * foot[:, 1] - s * foot[:, 2],
+                                                s * foot[:, 1] + c * foot[:, 2]], -1)
+    out = _foot_turn_smoothed(poses, 1, config.foot_turn_sigma, config.most_foot_turn)
+    spikes = lambda p: np.linalg.norm(p[1:-1] - 0.5 * (p[:-2] + p[2:]), axis=-1).max()
+    assert spikes(out[:, toe] - out[:, ankle]) < 0.8 * spikes(poses[:, toe] - poses[:, ankle])
+    np.testing.assert_allclose(np.linalg.norm(out[:, toe] - out[:, ankle], axis=-1),
+                               np.linalg.norm(foot, axis=-1), atol=1e-12)
+    assert np.linalg.norm(out[:, toe] - poses[:, toe], axis=-1).max() <= 1.01 * config.most_foot_turn   # back on its length
+    np.testing.assert_array_equal(np.delete(out, toe, axis=1), np.delete(poses, toe, axis=1))
 
 
 @pytest.mark.parametrize("n, h", [(1, 1), (1, 2), (2, 1), (7, 1)])
