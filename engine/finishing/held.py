@@ -24,6 +24,7 @@ from ..body import BONES, body_points
 from ..camera import StoryboardCamera
 from ..geometry.rotations import norm, normalize, quat_to_matrix
 from ..objects import ObjectSpec, world_to_local
+from ..rig import CHEST
 from ..skeleton import ELBOWS, HANDS, JOINT_NAMES, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
@@ -34,7 +35,6 @@ from .blend import ease_frames, ease_jumps, eased_push
 from .contacts import ContactConfig, anchor_table, arm_lengths, forward_of, object_anchors, span_weight
 
 _ARM = [*ELBOWS, *HANDS]
-SPINE3 = JOINT_NAMES.index("spine3")
 MIN_APART = 0.3   # m between two holders' chests, under which the line between them turns too fast
 # engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
 BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
@@ -239,7 +239,7 @@ def _carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma
     pops within 5 cm 63 -> 66, grips within 3 cm 100 -> 100."""
     yaw = np.unwrap(yaw)
     chest = gaussian_filter1d(np.unwrap(heading_of(forward_of(joints)), axis=0), sigma, axis=0, mode="nearest")  # (N, H)
-    centre = gaussian_filter1d(joints[:, :, SPINE3], sigma, axis=0, mode="nearest")                # (N, H, 3)
+    centre = gaussian_filter1d(joints[:, :, CHEST], sigma, axis=0, mode="nearest")                # (N, H, 3)
     holders = holding @ (1 << np.arange(holding.shape[1]))                         # (N,) who holds, as bits
     runs = np.flatnonzero(np.diff(np.concatenate([[-1], holders, [-1]])))          # where the holders change
     for start, stop in zip(runs[:-1], runs[1:]):
