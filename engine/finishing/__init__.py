@@ -20,13 +20,13 @@ that keep each person's bone lengths:
    towards it first, before the feet are planted (held.py), and a holder the grips are below the
    reach of crouches and leans to them (crouch.py): a box let go of is put down, not dropped;
    for an object the storyboard gives
-   no contact, the holds are the generated motion's (inferred.py); hands out of a hold pushed
-   out of the objects they sink into (clearance.py), knees swivelled out of them (swivel.py);
+   no contact, the holds are the generated motion's (inferred.py); hands out of a hold and feet
+   pushed out of the objects they sink into (clearance.py), knees swivelled out of them (swivel.py);
 5. knees and elbows that the stages above left popping smoothed on the circles that keep their
    bone lengths (limbs.py);
 6. the whole body smoothed where it still pops, what the stages above made exact held
-   (steady.py); hands that this puts back into an object pushed out again and smoothed once more
-   with the pushed joints held, and knees and elbows that it leaves popping between their ends
+   (steady.py); hands, feet and knees that this puts back into an object pushed out again and
+   smoothed once more with the pushed joints held, and knees and elbows that it leaves popping between their ends
    smoothed once more (limbs.py), never deeper into an object.
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
 A preview is finished without the clean-up (FinishConfig.polish): the step and crouch of 4, the
@@ -42,7 +42,7 @@ from ..clip import MotionClip
 from ..geometry.rotations import matrix_to_6d
 from ..skeleton import FEET, fit_offsets, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
-from .clearance import clear_hands
+from .clearance import clear_feet, clear_hands
 from .contacts import ContactConfig, object_anchors, reach_contacts
 from .crouch import crouch_to_grips
 from .feet import FeetConfig, lock_feet, reach_with_legs, settle_on_ground
@@ -163,19 +163,28 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
 
 def _polished(joints: np.ndarray, offsets: np.ndarray, obj_pose: np.ndarray | None, storyboard: Storyboard,
               config: FinishConfig) -> np.ndarray:
-    """Hands out of the objects (obj_pose (N, O, 7) or None) and pops smoothed: joints (N, H, 22, 3)."""
+    """Hands, knees and feet out of the objects (obj_pose (N, O, 7) or None) and pops smoothed:
+    joints (N, H, 22, 3)."""
     objects = None if obj_pose is None else (obj_pose, [o.spec for o in storyboard.objects])
     if objects is not None:
-        joints = clear_hands(clear_knees(joints, *objects, config.contact), obj_pose, storyboard,
-                             config.contact.clear_frames)
+        joints = _cleared(joints, obj_pose, storyboard, config.contact)
     joints = steady_body(steady_limbs(joints, config.limbs, objects), offsets, storyboard, config.steady)
     if obj_pose is not None:
         # The steadying smooths the pops that a push out of an object makes, and so can put the
         # hand back in (a wrist 14 cm deep before its hold): pushed out again, steadied once more
         # with the pushed joints held (smoothed, a released hand went 4 cm back into the box).
-        cleared = clear_hands(joints, obj_pose, storyboard, config.contact.clear_frames)
+        # Knees too (60 artist-style storyboards: a person deeper than 2 cm in an object in 20 of
+        # them -> 15, with the knees swivelled out again).
+        cleared = _cleared(joints, obj_pose, storyboard, config.contact)
         moved = np.any(cleared != joints, axis=-1)                                  # (N, H, 22)
         pushed = np.flatnonzero(moved.any(axis=(0, 2)))
         if len(pushed):
             joints = steady_body(cleared, offsets, storyboard, config.steady, pushed, held=moved)
     return _last_limb_pass(joints, config.last_limbs, objects)
+
+
+def _cleared(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard, config: ContactConfig) -> np.ndarray:
+    """joints (N, H, 22, 3) with feet, knees and hands out of the objects at obj_pose (N, O, 7)."""
+    joints = clear_feet(joints, obj_pose, storyboard, config.clear_frames)
+    joints = clear_knees(joints, obj_pose, [o.spec for o in storyboard.objects], config)
+    return clear_hands(joints, obj_pose, storyboard, config.clear_frames)
