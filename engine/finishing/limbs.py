@@ -21,9 +21,9 @@ from ..geometry.rotations import matrix_to_6d, norm, normalize, sixd_to_matrix
 from ..objects import ObjectSpec
 from ..skeleton import ELBOWS, JOINT_INDEX, forward_kinematics
 from .blend import smooth_path, spike
-from .swivel import limb_penetration
+from .swivel import ARM_RADII, LEG_RADII, limb_penetration
 
-DEEPER = 0.002   # m; an elbow the smoothing takes further into an object than this stays
+DEEPER = 0.002   # m; an elbow or knee the smoothing takes further into an object than this stays
 LIMBS = tuple(tuple(JOINT_INDEX[f"{side}_{joint}"] for joint in chain)
               for chain in (("hip", "knee", "ankle"), ("shoulder", "elbow", "wrist")) for side in "lr")
 
@@ -59,9 +59,9 @@ def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig(),
                  objects: tuple[np.ndarray, list[ObjectSpec]] | None = None) -> np.ndarray:
     """joints (N, H, 22, 3) -> (N, H, 22, 3) with knees and elbows that do not pop; every other
     joint and every bone length unchanged. With `objects` (their poses (N, O, 7), their specs),
-    an elbow is not smoothed into them: a frame whose arm the smoothed elbow would take deeper
-    into an object keeps its elbow (smoothing pushed forearms beside side grips 2-3 cm into boxes
-    that the elbows' swivel had cleared)."""
+    an elbow or knee is not smoothed into them: a frame whose limb the smoothed joint would take
+    deeper into an object keeps its joint (smoothing pushed forearms beside side grips 2-3 cm into
+    boxes that the elbows' swivel had cleared, and knees back into the box they crouch by)."""
     out = np.array(joints, float)
     if len(out) < 3:
         return out
@@ -80,16 +80,20 @@ def steady_limbs(joints: np.ndarray, config: LimbConfig = LimbConfig(),
             for h in np.flatnonzero(popping.any(axis=0)):
                 goal[:, h] = smooth_path(path[:, h], np.where(popping[:, h], config.popping_weight, 1.0), stiffness)
             moved = on_circle(out[:, :, root], out[:, :, end], upper, lower, goal)
-            if objects is not None and mid in ELBOWS:
-                moved = _not_deeper(out[:, :, root], out[:, :, mid], moved, out[:, :, end], *objects)
+            if objects is not None:
+                leg = mid not in ELBOWS   # a knee kneels on the floor
+                moved = _not_deeper(out[:, :, root], out[:, :, mid], moved, out[:, :, end], *objects,
+                                    LEG_RADII if leg else ARM_RADII, ground=not leg)
             out[:, :, mid] = moved
     return out
 
 
 def _not_deeper(shoulder: np.ndarray, elbow: np.ndarray, moved: np.ndarray, wrist: np.ndarray,
-                obj_pose: np.ndarray, specs: list[ObjectSpec]) -> np.ndarray:
+                obj_pose: np.ndarray, specs: list[ObjectSpec], radii: np.ndarray = ARM_RADII,
+                ground: bool = True) -> np.ndarray:
     """The moved elbows (N, H, 3), but the old ones (N, H, 3) where moving them takes the arm
-    (shoulder, wrist (N, H, 3)) deeper into the objects (obj_pose (N, O, 7))."""
+    (shoulder, wrist (N, H, 3)) deeper into the objects (obj_pose (N, O, 7)); or a leg's knees
+    (hip, ankle; its radii and `ground`: swivel.limb_penetration's)."""
     out = moved.copy()
     for h in range(elbow.shape[1]):
         changed = np.flatnonzero(np.any(moved[:, h] != elbow[:, h], axis=-1))   # only the smoothed frames
@@ -97,7 +101,7 @@ def _not_deeper(shoulder: np.ndarray, elbow: np.ndarray, moved: np.ndarray, wris
             continue
         ends = shoulder[changed, h, None], wrist[changed, h, None]
         both = np.stack([elbow[changed, h], moved[changed, h]], 1)
-        depth = limb_penetration(ends[0], both, ends[1], obj_pose[changed], specs)   # (M, 2)
+        depth = limb_penetration(ends[0], both, ends[1], obj_pose[changed], specs, radii, ground)   # (M, 2)
         deeper = changed[depth[:, 1] > depth[:, 0] + DEEPER]
         out[deeper, h] = elbow[deeper, h]
     return out

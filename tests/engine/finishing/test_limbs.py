@@ -3,12 +3,13 @@
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from engine.bench.animator import pop
 from engine.finishing import finish
 from engine.finishing.blend import smooth_correction, smooth_path
 from engine.finishing.limbs import LIMBS, LimbConfig, on_circle, steady_limbs, steady_rotations
-from engine.finishing.swivel import limb_penetration
+from engine.finishing.swivel import ARM_RADII, LEG_RADII, limb_penetration
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.objects import ObjectSpec
 from engine.skeleton import JOINT_INDEX, bone_lengths, fit_offsets, forward_kinematics, inverse_kinematics
@@ -72,22 +73,24 @@ def test_a_flipped_knee_is_smoothed_and_the_rest_kept():
 
 
 
-def test_an_elbow_is_not_smoothed_into_an_object():
-    """A popping elbow whose smoothed place is inside a box keeps its place where that would take
-    the arm deeper in; without the box it is smoothed back."""
+@pytest.mark.parametrize("limb, radii, ground", [(2, ARM_RADII, True), (0, LEG_RADII, False)])
+def test_an_elbow_or_knee_is_not_smoothed_into_an_object(limb, radii, ground):
+    """A popping elbow (or knee) whose smoothed place is inside a box keeps its place where that
+    would take the limb deeper in; without the box it is smoothed back."""
     clean = synthesize("handoff", 0, fps=20).joints.astype(float)
-    popped = swivelled_for_one_frame(clean, 40, 2)                        # the left elbow
-    elbow = JOINT_INDEX["l_elbow"]
+    popped = swivelled_for_one_frame(clean, 40, limb)                     # the left elbow or knee
+    root, mid, end = LIMBS[limb]
     box = ObjectSpec("box", (0.12, 0.12, 0.12))
     pose = np.tile([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], (len(clean), 1, 1))
-    pose[:, 0, :3] = clean[40, 0, elbow] - [0.0, 0.06, 0.0]              # around where it was
+    pose[:, 0, :3] = clean[40, 0, mid] - [0.0, 0.06, 0.0]                # around where it was
     def depth(joints):
-        s, e, w = (joints[:, 0, JOINT_INDEX[f"l_{j}"]][:, None] for j in ("shoulder", "elbow", "wrist"))
-        return limb_penetration(s, e, w, pose, [box])[:, 0]
+        a, m, b = (joints[:, 0, j][:, None] for j in (root, mid, end))
+        return limb_penetration(a, m, b, pose, [box], radii, ground)[:, 0]
     assert depth(steady_limbs(popped))[40] > 0.03                         # smoothed back into the box
     kept = steady_limbs(popped, objects=(pose, [box]))
     assert (depth(kept) <= depth(popped) + 0.002).all()
     np.testing.assert_allclose(bone_lengths(kept), bone_lengths(popped), atol=1e-9)
+
 
 def test_motion_that_does_not_pop_is_left_exactly():
     clean = synthesize("carry_together", 1, fps=20).joints.astype(float)
