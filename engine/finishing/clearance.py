@@ -105,17 +105,19 @@ def _sideways(points: np.ndarray, obj_pose: np.ndarray, spec: ObjectSpec, radii:
     (N, H, P, 3), radii (P,)) out of an object at obj_pose (N, 7): out of its footprint, found
     at the object's mid-height, along the footprint's outward normal. 0 where none sinks."""
     n, h, p = points.shape[:3]
-    flat = points.reshape(n, h * p, 3)
-    local = world_to_local(flat, obj_pose)                                      # (N, H*P, 3)
-    sunk = spec.penetration_local(local, np.tile(radii, h)).reshape(n, h, p)
-    level = local.copy()
-    level[..., 1] = spec.size[1] / 2
-    sdf = spec.sdf_local(level)
-    grad = np.stack([spec.sdf_local(level + STEP * axis) - sdf for axis in np.eye(3)[[0, 2]]], -1) / STEP
-    normal = np.zeros(local.shape)
-    normal[..., [0, 2]] = grad / np.maximum(norm(grad, keepdims=True), 1e-9)
-    push = (np.maximum(np.tile(radii, h) - sdf, 0.0)[..., None] * normal) @ quat_to_matrix(obj_pose[:, 3:]).swapaxes(-1, -2)
-    push = push.reshape(n, h, p, 3) * (sunk > 0)[..., None]
+    local = world_to_local(points.reshape(n, h * p, 3), obj_pose).reshape(n, h, p, 3)
+    sunk = spec.penetration_local(local, radii) > 0                               # (N, H, P)
+    push = np.zeros(local.shape)
+    if sunk.any():
+        level = local[sunk]                                                       # (M, 3)
+        level[:, 1] = spec.size[1] / 2
+        sdf = spec.sdf_local(level)
+        grad = np.stack([spec.sdf_local(level + STEP * axis) - sdf for axis in np.eye(3)[[0, 2]]], -1) / STEP
+        normal = np.zeros(level.shape)
+        normal[:, [0, 2]] = grad / np.maximum(norm(grad, keepdims=True), 1e-9)
+        rotation = np.broadcast_to(quat_to_matrix(obj_pose[:, 3:])[:, None, None], (n, h, p, 3, 3))[sunk]
+        depth = np.maximum(np.broadcast_to(radii, sunk.shape)[sunk] - sdf, 0.0)
+        push[sunk] = np.einsum("mij,mj->mi", rotation, depth[:, None] * normal)
     push[..., 1] = 0.0
     deepest = np.argmax(norm(push), axis=-1)                                    # (N, H)
     return np.take_along_axis(push, deepest[..., None, None], 2)[:, :, 0]
