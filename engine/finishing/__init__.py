@@ -26,8 +26,8 @@ that keep each person's bone lengths:
    bone lengths (limbs.py);
 6. the whole body smoothed where it still pops, what the stages above made exact held
    (steady.py); hands, feet and knees that this puts back into an object pushed out again and
-   smoothed once more with the pushed joints held, and knees and elbows that it leaves popping between their ends
-   smoothed once more (limbs.py), never deeper into an object.
+   smoothed once more with the pushed joints held, and knees and elbows that it leaves popping
+   between their ends smoothed once more (limbs.py), never deeper into an object.
 Joints and local rotations stay consistent: FK(root, rot6d, bone_offsets) == joints.
 A preview is finished without the clean-up (FinishConfig.polish): the step and crouch of 4, the
 elbow and knee swivels, the hands pushed out of objects and the smoothing of 5 and 6.

@@ -7,6 +7,7 @@ import pytest
 from engine.finishing import finish
 from engine.body import SPHERE_RADII, body_points
 from engine.finishing.clearance import clear_feet, clear_hands
+from engine.finishing.held import true_spans
 from engine.objects import world_to_local
 from engine.skeleton import FEET, JOINT_INDEX, bone_lengths
 from engine.sketchify import sketchify
@@ -19,9 +20,8 @@ WRIST = JOINT_INDEX["r_wrist"]
 
 def stances(foot):
     """Inclusive [first, last] frame spans where foot (N, 3) stands still."""
-    still = np.linalg.norm(np.diff(foot, axis=0), axis=-1) < 1e-4
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
-    return list(zip(edges[::2], edges[1::2]))
+    still = np.linalg.norm(np.diff(foot, axis=0), axis=-1) < 1e-4            # (N-1,) steps
+    return [(first, last + 1) for first, last in true_spans(still)]
 
 
 def wrist_depth(joints, obj_pose, spec, person):
