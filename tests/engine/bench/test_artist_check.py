@@ -1,8 +1,10 @@
-"""The artist-style check (engine.bench.artist_check): a put-down is told from a drop, and a
-wrist's miss at its key is told apart (the drawing's, the sketch plane's, depth)."""
+"""The artist-style check (engine.bench.artist_check): a put-down is told from a drop, a
+wrist's miss at its key is told apart (the drawing's, the sketch plane's, depth), and a jump from a
+spike."""
 import numpy as np
 
-from engine.bench.artist_check import release_drops, wrist_key_parts
+from engine.bench.animator import pop
+from engine.bench.artist_check import largest_jump, release_drops, wrist_key_parts
 from engine.camera import StoryboardCamera
 from engine.clip import MotionClip
 from engine.objects import ObjectSpec
@@ -56,3 +58,15 @@ def test_a_wrist_miss_is_split_into_the_drawing_the_sketch_plane_and_depth():
     np.testing.assert_allclose(wrist_key_parts(joints, reference, sb), [0.03, np.hypot(0.03, 0.05), 0.2], atol=1e-9)
     sb.keyposes = []
     assert wrist_key_parts(joints, reference, sb) is None
+
+
+def test_a_jump_is_a_step_beyond_both_neighbouring_steps_and_a_spike_is_none():
+    joints = np.zeros((N, 1, 22, 3))
+    joints[:, 0, :, 0] = 0.02 * np.arange(N)[:, None]      # 2 cm a frame
+    jumped = joints.copy()
+    jumped[15:, 0, :, 0] += 0.1                              # one step of 12 cm
+    assert np.isclose(largest_jump(jumped), 0.1)
+    spiked = joints.copy()
+    spiked[15, 0, 3, 1] += 0.1                               # one joint 10 cm up for a frame, and back
+    assert np.isclose(pop(spiked), 0.1)
+    assert largest_jump(spiked) < 1e-9
