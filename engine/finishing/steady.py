@@ -11,7 +11,8 @@ placed joints at their keys, the wrists in their holds, joints standing still, f
 (smoothed, a foot would travel before it lifts, and slide). A stretch that would pop more is
 smoothed less, in turn, and left as it was where even that would; so is a frame whose held hand
 the smoothed body could no longer reach. What one smoothing leaves popping the next ones take
-(`SteadyConfig.passes`), and no foot in the air comes out lower than it came.
+(`SteadyConfig.passes`), the last with the hands free in the first and last frames of their holds
+where those pop, and no foot in the air comes out lower than it came.
 """
 from __future__ import annotations
 
@@ -77,12 +78,14 @@ def frame_pops(path: np.ndarray) -> np.ndarray:
     return out
 
 
-def held_joints(joints: np.ndarray, storyboard: Storyboard, still: float, floor: float) -> np.ndarray:
-    """joints (N, H, 22, 3) -> (N, H, 22) bool: what the steadying must not move."""
+def held_joints(joints: np.ndarray, storyboard: Storyboard, still: float, floor: float,
+                holding: np.ndarray | None = None) -> np.ndarray:
+    """joints (N, H, 22, 3) -> (N, H, 22) bool: what the steadying must not move; the hands where
+    `holding` (N, H, 2) bool, by default the storyboard's holds."""
     held = np.zeros(joints.shape[:3], bool)
     for k in storyboard.keyposes:
         held[k.frame, storyboard.agent_index(k.agent)] |= k.mask
-    held[:, :, list(HANDS)] |= storyboard.holding()
+    held[:, :, list(HANDS)] |= storyboard.holding() if holding is None else holding
     step = norm(np.diff(joints, axis=0))                    # (N-1, H, 22)
     held[1:-1] |= (step[:-1] < still) & (step[1:] < still)
     low = joints[:, :, list(FEET), 1] < floor                                   # (N, H, 2)
@@ -213,8 +216,13 @@ def steady_body(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
     out = np.array(joints, float)
     if len(out) < 4:
         return out
-    kept = held_joints(out, storyboard, config.still, config.floor)
-    held = kept if held is None else kept | held
+    extra = np.zeros(out.shape[:3], bool) if held is None else held
+    held = held_joints(out, storyboard, config.still, config.floor) | extra
+    holding = storyboard.holding()
+    inner = holding.copy()                                   # the holds without their first and last frames
+    inner[1:] &= holding[:-1]
+    inner[:-1] &= holding[1:]
+    loose = held_joints(out, storyboard, config.still, config.floor, inner) | extra
     for h in range(out.shape[1]) if people is None else people:
         lowest = np.minimum(out[:, h, LEGS_END, 1], config.swing_floor)     # as the feet came, not as a pass left them
         changed = None
@@ -225,4 +233,10 @@ def steady_body(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
             if not changed.any():
                 break
             out[:, h] = steadied
+        # Last, where a grasp or a release still pops, its hand is let move in its first and last
+        # frames: the body that rose or turned while the hand held on had put the jolt there
+        # (artist_check, seed 0: pops within 5 cm 79 -> 82 of 100, grips and penetration the same).
+        edges = maximum_filter1d((holding[:, h] & ~inner[:, h]).any(-1), 2 * config.spread + 1)
+        if edges.any():
+            out[:, h] = _steady_person(out[:, h], loose[:, h], offsets[h], config, lowest, config.pass_gain, edges)
     return out
