@@ -5,7 +5,8 @@ import pytest
 from engine.bench.animator import pop
 from engine.finishing import FinishConfig, finish
 from engine.finishing.limbs import LIMBS
-from engine.finishing.steady import SteadyConfig, _repin_limbs, frame_pops, held_joints, steady_body
+from engine.finishing.steady import (LEGS_END, SteadyConfig, _feet_placed, _repin_limbs, _steady_person, frame_pops,
+                                    held_joints, steady_body)
 from engine.geometry.rotations import axis_angle_to_matrix
 from engine.skeleton import FEET, JOINT_INDEX, fit_offsets, forward_kinematics, inverse_kinematics
 from engine.sketchify import sketchify
@@ -51,11 +52,17 @@ def test_a_jolted_chest_is_steadied_and_what_is_held_kept(scene):
     around = slice(frame - 5, frame + 6)
     assert pop(popped[around]) > 0.1
     assert pop(out[around]) < 0.5 * pop(popped[around])
-    # Keys, holds and feet on the floor exactly; joints that stood still (knees of a standing
-    # person: held, but placed again on their circle when the body moves) to a centimetre.
-    sketched = held_joints(popped, storyboard, still=0.0, floor=SteadyConfig().floor)
+    # Keys, holds and feet on the floor exactly (but at the ends of holds and plants, which the
+    # last pass lets move: a foot there slides by about plant_slide, a leg that cannot reach its
+    # goal a few millimetres more); joints that stood still
+    # (knees of a standing person: held, but placed again on their circle when the body moves) to
+    # a centimetre.
+    sketched = held_joints(popped, storyboard, still=0.0, floor=SteadyConfig().floor, loose_ends=True)
     np.testing.assert_allclose(out[sketched], popped[sketched], atol=1e-9)
-    still = held_joints(popped, storyboard, SteadyConfig().still, SteadyConfig().floor)
+    on_floor = popped[..., list(FEET), 1] < SteadyConfig().floor
+    slid = np.linalg.norm((out - popped)[..., list(FEET), :][..., [0, 2]], axis=-1)[on_floor]
+    assert slid.max() <= SteadyConfig().plant_slide + 0.005
+    still = held_joints(popped, storyboard, SteadyConfig().still, SteadyConfig().floor, loose_ends=True)
     assert np.linalg.norm(out - popped, axis=-1)[still].max() < 0.01
     for h in range(2):                                                           # still on each skeleton
         refit = forward_kinematics(out[:, h, 0], inverse_kinematics(out[:, h], offsets[h]), offsets[h])
@@ -76,10 +83,14 @@ def test_joints_the_caller_holds_are_kept_too(scene):
 
 def test_smoothing_again_steadies_what_one_smoothing_left(scene):
     """The synthesized hand-off pops 27 cm (the synthesizer's stitched phases); one smoothing
-    leaves 13 cm, the next ones take more of it."""
+    leaves 13 cm, the next ones (and the last, with the holds' and plants' ends let move) take
+    more of it."""
     joints, offsets, storyboard = scene
-    once = pop(steady_body(joints, offsets, storyboard, SteadyConfig(passes=1)))
-    assert pop(steady_body(joints, offsets, storyboard)) < once - 0.005
+    config = SteadyConfig()
+    held = held_joints(joints, storyboard, config.still, config.floor)
+    once = np.stack([_steady_person(joints[:, h], held[:, h], offsets[h], config,
+                                    np.minimum(joints[:, h, LEGS_END, 1], config.swing_floor)) for h in range(2)], 1)
+    assert pop(steady_body(joints, offsets, storyboard)) < pop(once) - 0.01
 
 
 def test_a_foot_in_the_air_is_not_lowered(scene):
@@ -91,24 +102,42 @@ def test_a_foot_in_the_air_is_not_lowered(scene):
     assert (lowest - out[..., list(FEET), 1]).max() < 1.5e-3
 
 
-def test_a_hand_may_move_in_the_last_frame_of_its_hold_where_it_pops_there(scene):
-    """The arm swung 20 degrees for the last frame of a hold, the next frame keyed: held there,
-    the wrist spiked 16 cm; let move, it is steadied, and the hold's other frames stay exact."""
+def test_a_hand_may_move_a_little_in_the_last_frame_of_its_hold_where_it_pops_there(scene):
+    """The arm swung 8 degrees for the last frame of a hold, the next frame keyed: held there, the
+    wrist spikes 6.6 cm; let move by plant_slide, 5.1 cm, and the hold's other frames stay exact."""
     joints, offsets, storyboard = scene
     keyed = {(storyboard.agent_index(k.agent), k.frame) for k in storyboard.keyposes}
-    hold = next(c for c in storyboard.contacts if c.hand == "left" and (storyboard.agent_index(c.agent), c.end) not in keyed
-                and c.end < len(joints) - 2)
+    hold = next(c for c in storyboard.contacts if c.hand == "left" and c.end < len(joints) - 2
+                and (storyboard.agent_index(c.agent), c.end) not in keyed)
     h, end, wrist = storyboard.agent_index(hold.agent), hold.end, JOINT_INDEX["l_wrist"]
     rotations = inverse_kinematics(joints[:, h], offsets[h])
     shoulder = JOINT_INDEX["l_shoulder"]
-    rotations[end, shoulder] = rotations[end, shoulder] @ axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(20)]))
+    rotations[end, shoulder] = rotations[end, shoulder] @ axis_angle_to_matrix(np.array([0.0, 0.0, np.radians(8)]))
     popped = joints.copy()
     popped[:, h] = forward_kinematics(joints[:, h, 0], rotations, offsets[h])
     out = steady_body(popped, offsets, storyboard)
     around = slice(end - 4, end + 5)
-    assert pop(popped[around]) > 0.1
-    assert pop(out[around]) < 0.03
+    assert pop(out[around]) < pop(popped[around]) - 0.01
+    assert np.linalg.norm(out[end, h, wrist] - popped[end, h, wrist]) <= SteadyConfig().plant_slide + 1e-6
     np.testing.assert_array_equal(out[hold.start + 1:end, h, wrist], popped[hold.start + 1:end, h, wrist])
+
+
+def test_a_smoothed_foot_on_the_floor_slides_little_and_one_in_the_air_is_not_lowered(scene):
+    joints, offsets, storyboard = scene
+    path = joints[:, 0]
+    foot, knee = FEET[0], JOINT_INDEX["l_knee"]
+    planted = int(np.argmin(path[:, foot, 1]))                  # on the floor
+    swinging = int(np.argmax(path[:, foot, 1]))                 # in the air
+    smoothed = path.copy()
+    smoothed[[planted, swinging]] = path[[planted, swinging]] + (0.05, -0.03, 0.0)   # moved aside, lower
+    free = np.ones(path.shape[:2], bool)
+    lowest = np.minimum(path[:, list(FEET), 1], 0.08)
+    out = _feet_placed(smoothed, path, free, lowest, floor=0.06, slide=0.015)
+    assert np.linalg.norm(out[planted, foot, [0, 2]] - path[planted, foot, [0, 2]]) <= 0.015 + 1e-9
+    assert out[swinging, foot, 1] >= lowest[swinging, 0] - 1e-6
+    for f in (planted, swinging):   # the legs keep their bones
+        np.testing.assert_allclose(np.linalg.norm(out[f, knee] - out[f, JOINT_INDEX["l_hip"]]),
+                                   np.linalg.norm(path[f, knee] - path[f, JOINT_INDEX["l_hip"]]), atol=1e-6)
 
 
 def test_motion_that_does_not_pop_is_left_exactly(scene):
