@@ -178,7 +178,7 @@ def _polished(joints: np.ndarray, offsets: np.ndarray, obj_pose: np.ndarray | No
         cleared = _cleared(joints, obj_pose, storyboard, config.contact)
         moved = np.any(cleared != joints, axis=-1)                                  # (N, H, 22)
         pushed = np.flatnonzero(moved.any(axis=(0, 2)))
-        if len(pushed):   # one smoothing is enough here (three: 8 ms more a clip, no fewer pops)
+        if len(pushed):   # one smoothing is enough here (three: 8 ms more a clip, about as many pops)
             joints = steady_body(cleared, offsets, storyboard, replace(config.steady, passes=1), pushed, held=moved)
     return _last_limb_pass(joints, config.last_limbs, objects)
 

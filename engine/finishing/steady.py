@@ -153,6 +153,11 @@ def _repin_limbs(pose: np.ndarray, wanted: np.ndarray, held: np.ndarray) -> np.n
     return np.where(missed[:, None, None], wanted, out)
 
 
+def _at_most(moves: np.ndarray, most: float) -> np.ndarray:
+    """Moves (..., D) shortened to at most `most` (m) long."""
+    return moves * np.minimum(1.0, most / np.maximum(norm(moves, keepdims=True), 1e-9))
+
+
 def _feet_placed(poses: np.ndarray, path: np.ndarray, free: np.ndarray, lowest: np.ndarray,
                  floor: float, slide: float) -> np.ndarray:
     """poses (N, 22, 3) smoothed from path (N, 22, 3), their free feet (free (N, 22) bool) put
@@ -168,9 +173,8 @@ def _feet_placed(poses: np.ndarray, path: np.ndarray, free: np.ndarray, lowest: 
         if fix.any():
             goal = out[fix, foot].copy()
             stay = path[fix][:, foot, [0, 2]]
-            away = goal[:, [0, 2]] - stay
-            away *= np.minimum(1.0, slide / np.maximum(norm(away, keepdims=True), 1e-9))
-            goal[:, [0, 2]] = np.where(planted[fix, None], stay + away, goal[:, [0, 2]])
+            slid = stay + _at_most(goal[:, [0, 2]] - stay, slide)
+            goal[:, [0, 2]] = np.where(planted[fix, None], slid, goal[:, [0, 2]])
             goal[:, 1] = np.maximum(goal[:, 1], lowest[fix, side])
             out[fix] = reach_with_leg(out[fix], side, goal)
     return out
@@ -233,9 +237,8 @@ def _smoothed(path: np.ndarray, held: np.ndarray, popping: np.ndarray, offsets: 
     goal[popping] = _repin_limbs(rigid, path[popping], held[popping])
     if ends is not None:   # a hand at its hold's end leaves its grip by little
         near = ends & popping[:, None] & np.isin(np.arange(NUM_JOINTS), HANDS)
-        away = goal - path
-        wanted = path + away * np.minimum(1.0, config.plant_slide / np.maximum(norm(away, keepdims=True), 1e-9))
-        goal[popping] = _repin_limbs(goal[popping], np.where(near[..., None], wanted, goal)[popping], near[popping])
+        wanted = np.where(near[..., None], path + _at_most(goal - path, config.plant_slide), goal)
+        goal[popping] = _repin_limbs(goal[popping], wanted[popping], near[popping])
     return _feet_placed(goal, path, popping[:, None] & ~held, lowest[:, :len(FEET)], config.floor,
                         config.plant_slide)
 
@@ -245,7 +248,8 @@ def steady_body(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyboard,
                 held: np.ndarray | None = None) -> np.ndarray:
     """joints (N, H, 22, 3) on each person's skeleton, offsets (H, 22, 3) -> the same where nothing
     pops; where something does, smoothed with the held joints (held_joints, and `held` (N, H, 22)
-    bool where given) kept. Only `people` (indices; None: everyone) are steadied."""
+    bool where given) kept, the last pass with the ends of holds and plants let move a little. Only
+    `people` (indices; None: everyone) are steadied."""
     out = np.array(joints, float)
     if len(out) < 4:
         return out
