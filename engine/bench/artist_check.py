@@ -16,6 +16,7 @@ import argparse
 import numpy as np
 
 from ..finishing.held import true_spans
+from ..finishing.steady import step_jumps
 from ..generate import generate
 from ..models.bundle import load_default
 from ..sampling.config import sampler_config
@@ -43,8 +44,7 @@ def largest_jump(joints: np.ndarray) -> float:
     """The largest step of a joint beyond both of its neighbouring steps (m), joints (N, H, 22, 3):
     issue 18's "pop beyond both neighbours", Pop without its spikes (a joint off the line between
     its neighbouring frames)."""
-    step = np.linalg.norm(np.diff(joints, axis=0), axis=-1)
-    return float(max((step[1:-1] - np.maximum(step[:-2], step[2:])).max(initial=0.0), 0.0))
+    return float(max(step_jumps(joints.reshape(len(joints), -1, 3)).max(initial=0.0), 0.0))
 
 
 def wrist_key_parts(joints: np.ndarray, reference: np.ndarray, storyboard) -> tuple[float, float, float] | None:

@@ -62,6 +62,11 @@ def eased_push(push: np.ndarray, frames: float) -> np.ndarray:
     return np.where(norm(direction, keepdims=True) > 1e-9, envelope[:, None] * normalize(direction), 0.0)
 
 
+def at_most(moves: np.ndarray, most: float) -> np.ndarray:
+    """Moves (..., D) shortened to at most `most` (m) long, their directions kept."""
+    return moves * np.minimum(1.0, most / np.maximum(norm(moves, keepdims=True), 1e-9))
+
+
 def spike(path: np.ndarray) -> np.ndarray:
     """How far each frame of a path (N, ..., 3) lies off the middle of its neighbours -> (N, ...);
     the first and last frames 0."""

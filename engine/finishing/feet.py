@@ -28,7 +28,7 @@ from ..geometry.rotations import norm, normalize
 from ..skeleton import ANKLES, FEET, HIPS, KNEES
 from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
-from .blend import HELD_WEIGHT, ease_frames, eased_push, smooth_correction, smooth_path, spike
+from .blend import HELD_WEIGHT, at_most, ease_frames, eased_push, smooth_correction, smooth_path, spike
 from .keys import closeness_to_keys
 from .walk import walk_through_flights
 
@@ -445,7 +445,7 @@ def _foot_turn_smoothed(poses: np.ndarray, side: int, sigma: float, most: float)
     foot = poses[:, toe] - poses[:, ankle]
     length = norm(foot, keepdims=True)
     change = normalize(gaussian_filter1d(foot, sigma, axis=0, mode="nearest")) * length - foot
-    change *= np.minimum(1.0, most / np.maximum(norm(change, keepdims=True), 1e-9))
+    change = at_most(change, most)
     out = poses.copy()
     out[:, toe] = poses[:, ankle] + normalize(foot + change) * length
     return out

@@ -29,7 +29,7 @@ from ..geometry.rotations import norm
 from ..skeleton import (ANKLES, CHILDREN, FEET, HANDS, NUM_JOINTS, bone_lengths, forward_kinematics,
                         inverse_kinematics)
 from ..storyboard import Storyboard
-from .blend import HELD_WEIGHT, smooth_path, spike
+from .blend import HELD_WEIGHT, at_most, smooth_path, spike
 from .feet import reach_with_leg
 from .limbs import LIMBS, on_circle
 
@@ -70,13 +70,19 @@ class SteadyConfig:
     bone_iterations: int = 15   # of the bone-length restoring, before the exact IK
 
 
+def step_jumps(path: np.ndarray) -> np.ndarray:
+    """How far each step k + 1 (frames k + 1 -> k + 2) of joint paths (N, J, 3) is longer than both
+    of its neighbouring steps, over the joints -> (N - 3,) (empty for fewer than 4 frames)."""
+    step = norm(np.diff(path, axis=0))                     # (N-1, J)
+    return (step[1:-1] - np.maximum(step[:-2], step[2:])).max(axis=-1)
+
+
 def frame_pops(path: np.ndarray) -> np.ndarray:
     """How much each frame of joint paths (N, J, 3) pops, over its joints -> (N,): the larger of its
     spike and the jump of the steps into or out of it beyond both of their neighbouring steps."""
     out = spike(path).max(axis=-1)
     if len(path) >= 4:
-        step = norm(np.diff(path, axis=0))                 # (N-1, J)
-        jump = (step[1:-1] - np.maximum(step[:-2], step[2:])).max(axis=-1)    # step k+1: frames k+1, k+2
+        jump = step_jumps(path)
         out[1:-2] = np.maximum(out[1:-2], jump)
         out[2:-1] = np.maximum(out[2:-1], jump)
     return out
@@ -153,11 +159,6 @@ def _repin_limbs(pose: np.ndarray, wanted: np.ndarray, held: np.ndarray) -> np.n
     return np.where(missed[:, None, None], wanted, out)
 
 
-def _at_most(moves: np.ndarray, most: float) -> np.ndarray:
-    """Moves (..., D) shortened to at most `most` (m) long."""
-    return moves * np.minimum(1.0, most / np.maximum(norm(moves, keepdims=True), 1e-9))
-
-
 def _feet_placed(poses: np.ndarray, path: np.ndarray, free: np.ndarray, lowest: np.ndarray,
                  floor: float, slide: float) -> np.ndarray:
     """poses (N, 22, 3) smoothed from path (N, 22, 3), their free feet (free (N, 22) bool) put
@@ -173,7 +174,7 @@ def _feet_placed(poses: np.ndarray, path: np.ndarray, free: np.ndarray, lowest: 
         if fix.any():
             goal = out[fix, foot].copy()
             stay = path[fix][:, foot, [0, 2]]
-            slid = stay + _at_most(goal[:, [0, 2]] - stay, slide)
+            slid = stay + at_most(goal[:, [0, 2]] - stay, slide)
             goal[:, [0, 2]] = np.where(planted[fix, None], slid, goal[:, [0, 2]])
             goal[:, 1] = np.maximum(goal[:, 1], lowest[fix, side])
             out[fix] = reach_with_leg(out[fix], side, goal)
@@ -237,7 +238,7 @@ def _smoothed(path: np.ndarray, held: np.ndarray, popping: np.ndarray, offsets: 
     goal[popping] = _repin_limbs(rigid, path[popping], held[popping])
     if ends is not None:   # a hand at its hold's end leaves its grip by little
         near = ends & popping[:, None] & np.isin(np.arange(NUM_JOINTS), HANDS)
-        wanted = np.where(near[..., None], path + _at_most(goal - path, config.plant_slide), goal)
+        wanted = np.where(near[..., None], path + at_most(goal - path, config.plant_slide), goal)
         goal[popping] = _repin_limbs(goal[popping], wanted[popping], near[popping])
     return _feet_placed(goal, path, popping[:, None] & ~held, lowest[:, :len(FEET)], config.floor,
                         config.plant_slide)
