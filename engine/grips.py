@@ -2,12 +2,14 @@
 
 An object's anchors are the places a hand holds it (engine.objects.default_anchors: a box has a
 near and a far grip on each end). In the app an artist joins a hand to the side of an object the
-hand is drawn at; which of the grips there is a detail no 2D drawing settles, and two mistakes
+hand is drawn at; which of the grips there is a detail no 2D drawing settles, and mistakes
 follow. Two hands on one grip at once (both people at a hand-off clicked the box's ends): finishing
 put the giver's hands on the taker's, 58 cm from where they were drawn. A person's two hands
 crossed (the left on the grip at their right): no turn of the box fits both hands, and at the
-hand-off the hands ended 20 cm off their grips. A storyboard is read with both mended, and the
-app mends them as contacts are drawn.
+hand-off the hands ended 20 cm off their grips. Or on diagonal corners (the near grip of one end,
+the far one of the other), which no hand reaches without an arm across the object: two lifters
+fitted so to their drawing had wrists 8-13 cm inside the box and a hand 18 cm off its grip. A
+storyboard is read with these mended, and the app mends them as contacts are drawn.
 """
 from __future__ import annotations
 
@@ -26,6 +28,7 @@ from .synth.reach import yaw_matrix
 UP = np.array([0.0, 1.0, 0.0])
 TURNS = 72          # turns of an object about the vertical tried when fitting its grips to drawn hands
 NEAR_FRAMES = 8     # a person's keypose this close to a shared hold draws their hands in it
+ONE_FACE = 0.01     # m: two grips whose midpoint is this far off the object's centre share a face
 
 
 def _overlap(a: Contact, b: Contact) -> bool:
@@ -65,18 +68,19 @@ def _anchors(storyboard: Storyboard, contact: Contact) -> np.ndarray:
 
 
 def _uncrossed(storyboard: Storyboard, left: Contact, right: Contact) -> bool:
-    """Whether a person holding `left`'s and `right`'s grips of one object at once has their left
-    hand on their left: standing off the face the two grips are on, facing it."""
+    """Whether a person holding `left`'s and `right`'s grips of one object at once holds them as
+    hands can: both grips on one face (not diagonal corners, whose midpoint is the object's
+    centre), standing off that face, facing it, the left hand on their left."""
     anchors = _anchors(storyboard, left)
     a, b = anchors[left.anchor], anchors[right.anchor]
     outward = (a + b) * (1.0, 0.0, 1.0)              # from the object's centre to the face held
-    return bool(np.cross(UP, -outward) @ (a - b) >= 0.0)
+    return bool(np.linalg.norm(outward) > ONE_FACE and np.cross(UP, -outward) @ (a - b) >= 0.0)
 
 
-def _held_together(storyboard: Storyboard, holds: list[Contact]) -> list[tuple[list[int], np.ndarray]]:
+def _held_together(storyboard: Storyboard, holds: list[Contact]) -> list[tuple[list[int], np.ndarray | None]]:
     """Holds of one object (indices into `holds`) that overlap in time, two or more people's, with
-    each hand as its person's keypose nearest the frames they share draws it (hands, 2); groups
-    some hand of which no keypose within NEAR_FRAMES draws are left out."""
+    each hand as its person's keypose nearest the frames they share draws it (hands, 2), or None
+    where some hand no keypose within NEAR_FRAMES draws."""
     out = []
     for obj in dict.fromkeys(c.object for c in holds):
         mine = [i for i, c in enumerate(holds) if c.object == obj]
@@ -89,10 +93,15 @@ def _held_together(storyboard: Storyboard, holds: list[Contact]) -> list[tuple[l
             if len({holds[i].agent for i in group}) < 2:
                 continue
             shared = (max(holds[i].start for i in group), min(holds[i].end for i in group))
-            drawn = [_drawn_near(storyboard, holds[i], shared) for i in group]
-            if all(d is not None for d in drawn):
-                out.append((group, np.stack(drawn)))
+            out.append((group, _drawn_hands(storyboard, [holds[i] for i in group], shared)))
     return out
+
+
+def _drawn_hands(storyboard: Storyboard, holds: list[Contact], frames: tuple[int, int]) -> np.ndarray | None:
+    """The holds' hands (hands, 2) as drawn near the frames [first, last] (_drawn_near), or None
+    where one of them is not."""
+    drawn = [_drawn_near(storyboard, c, frames) for c in holds]
+    return None if any(d is None for d in drawn) else np.stack(drawn)
 
 
 def _drawn_near(storyboard: Storyboard, contact: Contact, frames: tuple[int, int]) -> np.ndarray | None:
@@ -121,19 +130,29 @@ def _misfit(storyboard: Storyboard, holds: list[Contact], drawn: np.ndarray,
     return (gap ** 2).sum(axis=(2, 3)).min(axis=1)
 
 
-def _fit_to_drawing(storyboard: Storyboard, holds: list[Contact], drawn: np.ndarray) -> None:
+def _fit_to_drawing(storyboard: Storyboard, holds: list[Contact], drawn: np.ndarray | None) -> None:
     """Hands that hold one object together and share or cross grips get the grips (one each, no
-    person's hands crossed) that fit their drawn places (hands, 2) best; grips that are possible
-    stay (the drawing is a few frames and centimetres off, the artist's choice is not)."""
+    person's hands crossed) that fit their drawn places (hands, 2) best (_chosen); grips that are
+    possible stay (the drawing is a few frames and centimetres off, the artist's choice is not)."""
     given = tuple(c.anchor for c in holds)
     if len(set(given)) == len(given) and _uncrossed_choice(storyboard, holds, given):
         return
     count = len(_anchors(storyboard, holds[0]))
     options = [p for p in itertools.permutations(range(count), len(holds))
                if _uncrossed_choice(storyboard, holds, p)]
+    _chosen(storyboard, holds, options, drawn)
+
+
+def _chosen(storyboard: Storyboard, holds: list[Contact], options: list[tuple[int, ...]],
+            drawn: np.ndarray | None) -> None:
+    """`holds` given the grip choice of `options` (one grip a hold each) that fits their drawn
+    hands (hands, 2) best, or with no drawing (None) the one that keeps the most grips given."""
     if not options:
         return
-    best = options[int(np.argmin(_misfit(storyboard, holds, drawn, np.array(options))))]
+    if drawn is not None:
+        best = options[int(np.argmin(_misfit(storyboard, holds, drawn, np.array(options))))]
+    else:
+        best = max(options, key=lambda o: sum(a == c.anchor for a, c in zip(o, holds)))
     for c, anchor in zip(holds, best):
         c.anchor = anchor
 
@@ -153,7 +172,7 @@ def with_grips_fitted(storyboard: Storyboard) -> Storyboard:
     (_fit_to_drawing); then every hold whose grip an earlier hold's hand holds over part of its span
     has the nearest grip no other hand holds then (or keeps its own where none is free), and a
     person's two hands holding one object at once swap grips where the left one holds the grip on
-    their right."""
+    their right (_pair_mended where that is not enough: hands on diagonal corners)."""
     out = replace(storyboard, contacts=copy.deepcopy(storyboard.contacts))   # the rest is only read
     holds = [c for c in out.contacts if c.object is not None]
     for together, drawn in _held_together(out, holds):
@@ -166,4 +185,18 @@ def with_grips_fitted(storyboard: Storyboard) -> Storyboard:
                       if c.hand == "right" and c.agent == left.agent and c.object == left.object):
             if _overlap(left, right) and left.anchor != right.anchor and not _uncrossed(out, left, right):
                 left.anchor, right.anchor = right.anchor, left.anchor
+                if not _uncrossed(out, left, right):
+                    _pair_mended(out, [c for c in holds if c is not left and c is not right], left, right)
     return out
+
+
+def _pair_mended(storyboard: Storyboard, others: list[Contact], left: Contact, right: Contact) -> None:
+    """A person's two hands on grips of one object that no hands hold so (diagonal corners): the two
+    grips that `others` leave free over their spans, on one face, left hand left (_chosen: as the
+    person's keypose near the frames both hold draws the hands)."""
+    count = len(_anchors(storyboard, left))
+    free = [[k for k in range(count) if k not in held_by_others(c, others)] for c in (left, right)]
+    options = [(a, b) for a in free[0] for b in free[1]
+               if a != b and _uncrossed_choice(storyboard, [left, right], (a, b))]
+    shared = (max(left.start, right.start), min(left.end, right.end))
+    _chosen(storyboard, [left, right], options, _drawn_hands(storyboard, [left, right], shared))

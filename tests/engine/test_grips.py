@@ -1,4 +1,7 @@
 """Grips two hands cannot share (engine/grips.py)."""
+import pytest
+
+from engine.artist_sketch import hand_drawn
 from engine.grips import free_anchors, held_by_others, with_grips_fitted
 from engine.request import Request
 from engine.sketchify import sketchify
@@ -91,3 +94,30 @@ def test_grips_that_are_possible_stay_whatever_the_drawing():
     for c in sb.contacts:                    # each person on one end: possible, if not as drawn
         c.anchor = {("A", "left"): 0, ("A", "right"): 1, ("B", "left"): 3, ("B", "right"): 2}[(c.agent, c.hand)]
     assert grips(with_grips_fitted(sb)) == grips(sb)
+
+
+def faces_held(sb: Storyboard) -> list[set[int]]:
+    """Each person's two grips where both hands hold one object at once."""
+    return [{left.anchor, right.anchor} for left in sb.contacts for right in sb.contacts
+            if (left.agent, left.hand, right.hand) == (right.agent, "left", "right") and left.object
+            and left.object == right.object and left.start <= right.end and right.start <= left.end]
+
+
+@pytest.mark.parametrize("drawing", [5, 6, 9])
+def test_lifters_drawn_by_hand_hold_one_face_each(drawing):
+    """Joined to the grips nearest their stretched, shifted drawing, the lifters of this box were
+    fitted to diagonal corners (the near grip of one end, the far one of the other), which no hand
+    reaches without an arm across the box: 8-13 cm inside it, a hand 18 cm off its grip."""
+    sb = hand_drawn(sketchify(synthesize("lift_adjust", 7, fps=20), 4, 0.0, 7), drawing)
+    assert faces_held(sb) and all(pair in ({0, 1}, {2, 3}, {0, 2}, {1, 3}) for pair in faces_held(sb))
+
+
+def test_one_holder_on_diagonal_corners_holds_one_face():
+    sb = hand_off()
+    for c in sb.contacts:
+        if c.agent == "A":
+            c.anchor = 0 if c.hand == "left" else 3
+        else:
+            c.start = 50                                  # A holds alone
+    assert faces_held(with_grips_fitted(sb))[0] in ({0, 1}, {2, 3}, {0, 2}, {1, 3})   # an end or a side
+    assert with_grips_fitted(with_grips_fitted(sb)).contacts == with_grips_fitted(sb).contacts
