@@ -47,6 +47,7 @@ class ProtocolConfig:
     noise_scenes: int = 10             # scenes re-sketched at each noise level
     noise_levels: tuple[float, ...] = NOISE_LEVELS
     artist_scenes: int = 10            # scenes drawn both ways by engine.artist_sketch
+    drawing: int = 0                   # added to each scene's seed for its artist-style drawing
     text_noise: tuple[float, ...] = (0.0, 0.6)   # noise levels of the sketch+text storyboards
     real_windows: int = 3              # windows of the held-out salsa take
     window: int = 120                  # frames per real window (6 s at 20 fps)
@@ -150,7 +151,8 @@ def build_protocols(config: ProtocolConfig = ProtocolConfig()) -> list[Protocol]
                      + ("" if items else " Protocol skipped.")])
     drawn = scenes[:config.artist_scenes]
     artist = Protocol("artist", "Drawn the way artists draw (by hand, and posed with the app's tools)",
-                      [BenchItem(f"{i} {kind}", kind, 0.0, make(sketchify(c, config.keyframes, 0.0, seed), seed), c)
+                      [BenchItem(f"{i} {kind}", kind, 0.0,
+                                 make(sketchify(c, config.keyframes, 0.0, seed), seed + config.drawing), c)
                        for i, c, seed in drawn for kind, make in ARTIST_KINDS.items()],
                       [f"{len(drawn)} scenes x {', '.join(ARTIST_KINDS)} (engine.artist_sketch: figures stretched "
                        f"up to 12%, joints 2-3 cm off, spine and collars often unplaced, keys and contact spans "

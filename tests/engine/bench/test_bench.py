@@ -74,6 +74,19 @@ def test_protocols_without_data_synthesize_reserved_seeds_and_skip_absent_real(t
     assert text.items[0].storyboard.text == text.items[1].storyboard.text        # one caption per scene
 
 
+def test_another_drawing_draws_the_same_artist_scenes_otherwise(tmp_path):
+    def artist(drawing):
+        config = ProtocolConfig(scenarios=("let_go",), per_scenario=1, noise_scenes=0, artist_scenes=1,
+                                data_dir=tmp_path, shared_dir=tmp_path, drawing=drawing)
+        return next(p for p in build_protocols(config) if p.name == "artist").items
+    first, again, other = artist(0), artist(0), artist(7)
+    assert [i.id for i in first] == [i.id for i in other]
+    for a, b, c in zip(first, again, other):
+        assert a.reference is c.reference or np.array_equal(a.reference.joints, c.reference.joints)
+        assert np.array_equal(a.storyboard.keyposes[0].points, b.storyboard.keyposes[0].points)
+        assert not np.array_equal(a.storyboard.keyposes[0].points, c.storyboard.keyposes[0].points)
+
+
 def test_markdown_has_every_table_and_the_command(tiny_run):
     _, md, _, root = tiny_run
     assert f"`sketch2colab bench --quick -o {root / 'BENCHMARKS.md'} --json {root / 'bench.json'}`" in md
