@@ -30,7 +30,8 @@ class ContactConfig:
     DURATIONS: ClassVar[tuple[str, ...]] = ("blend_frames", "most_handover_frames", "lift_frames", "smooth_sigma",
                                             "reach_smoothing", "frames_per_metre", "swivel_sigma", "clear_frames",
                                             "sunk_frames", "held_clear_frames", "crouch_frames_per_metre",
-                                            "lean_frames_per_radian", "crouch_sigma", "lean_sigma")
+                                            "lean_frames_per_radian", "crouch_sigma", "lean_sigma",
+                                            "key_ease_frames", "step_ease_frames", "knee_ease_frames")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
     sunk_frames: int = 18          # frames before (after) a span within which a hand inside the object holds on
     handover_pop: float = 0.02     # m a grip may spike where a held object eases out the turn that a hand
@@ -56,6 +57,8 @@ class ContactConfig:
                                        # 0.05, forearms stayed in boxes beside their grips: artist-style
                                        # penetration within 2 cm 85, 81, 76 -> 89, 86, 79 of 100 on
                                        # three drawings of 50 scenes, pops the same)
+    knee_ease_frames: int = 4      # frames either side of a knee's stay in an object over which it swivels
+                                   # too (none: a one-frame stay swung the knee 16 cm out and back)
     swivel_sigma: float = 0.75     # frames at TUNED_FPS; smoothing of the chosen swivel angles (1.5
                                    # turned forearms back into boxes beside side grips: artist-style
                                    # penetration within 2 cm 14 -> 15 of 20, pops the same)
@@ -64,6 +67,14 @@ class ContactConfig:
     reach_passes: int = 2          # steps towards the grips (smoothing leaves part of each one undone)
     reach_smoothing: float = 3.0   # frames; Gaussian sigma of a holder's step offsets
     frames_per_metre: float = 25.0  # frames a holder's step offset takes to grow by a metre away from a key
+    key_ease_frames: float = 1.5   # frames over which a step or crouch away from a key eases in (growing
+                                   # at full pace from the key, it kinked there: 4 cm of the whole body in
+                                   # a frame; artist-style pops within 5 cm on three drawings of 50
+                                   # scenes 88, 82, 77 -> 86, 87, 85 of 100; over 3 frames, 89, 87, 84,
+                                   # but grips beyond reach near keys and a knee pop of 11 cm)
+    step_ease_frames: int = 2      # frames over which a step eases into the room a key leaves it (cut
+                                   # off there at once, a body turned back in a frame: pops within 5 cm
+                                   # 86, 87, 85 -> 91, 89, 86; 2 of 300 grips beyond 3 cm against 1)
     grip_rise: float = 0.9         # share of the reach a held grip may lie below or above its shoulder
     crouch_frames_per_metre: float = 50.0   # frames a holder takes to crouch a metre to grips below its
                                    # reach (crouch.py; 2 cm a frame at 20 fps: at 3, 20 artist-style

@@ -23,7 +23,7 @@ from ..synth.reach import UP
 from .contacts import ContactConfig, arm_lengths, forward_of, object_anchors, span_weight
 from .feet import reach_with_legs
 from .held import BODY_SPHERES
-from .keys import key_frames
+from .keys import room_from_keys
 from .limbs import DEEPER
 
 
@@ -111,17 +111,12 @@ def _lean(joints: np.ndarray, short: np.ndarray, config: ContactConfig) -> np.nd
     return np.maximum(np.arccos(np.clip(np.cos(tilt) - short / length, lowest, 1.0)) - tilt, 0.0)
 
 
-def _paced(amount: np.ndarray, rate: float, sigma: float, storyboard: Storyboard) -> np.ndarray:
+def _paced(amount: np.ndarray, rate: float, storyboard: Storyboard, config: ContactConfig) -> np.ndarray:
     """amount (N, H) >= 0 reached by the time it is wanted and let go of after, at most `rate` a
-    frame (smoothed over sigma frames), easing to none at each person's key frames (the warp placed
-    those poses)."""
-    amount = gaussian_filter1d(_cone(amount, rate, up=True), sigma, axis=0, mode="nearest")
-    bend, frames = max(sigma, 1.0), np.arange(len(amount))   # frames over which the way to a key eases out
-    for a, keys in enumerate(key_frames(storyboard)):
-        if keys:
-            d = np.min(np.abs(frames[:, None] - np.asarray(keys)[None]), axis=1)
-            amount[:, a] = np.minimum(amount[:, a], rate * np.where(d < bend, d ** 2 / (2 * bend), d - bend / 2))
-    return amount
+    frame (smoothed over crouch_sigma frames), easing to none at each person's key frames (the
+    warp placed those poses)."""
+    amount = gaussian_filter1d(_cone(amount, rate, up=True), config.crouch_sigma, axis=0, mode="nearest")
+    return np.minimum(amount, room_from_keys(storyboard, len(amount), rate, config.key_ease_frames))
 
 
 def _no_deeper(poses: np.ndarray, amount: np.ndarray, move, objects: tuple[np.ndarray, list],
@@ -182,7 +177,7 @@ def crouch_to_grips(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyb
     # Down by the span's start, up after its end (to a grip one frame after another, a squat
     # of 40 cm took three frames).
     rate = 1.0 / config.crouch_frames_per_metre
-    drop = _paced(_squat(joints, short, config), rate, config.crouch_sigma, storyboard)
+    drop = _paced(_squat(joints, short, config), rate, storyboard, config)
     out = _each_no_deeper(joints, drop, _crouched, objects, rate)
     # A lean eases in and out, the way a body bends (paced like the squat, at a fixed rate, it bent
     # over for two seconds: 20 artist-style storyboards' pops within 5 cm 16 -> 13)
@@ -190,5 +185,5 @@ def crouch_to_grips(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyb
     wide = 2 * round(2 * config.lean_sigma) + 1   # bent over by the time the grip needs it
     lean = gaussian_filter1d(maximum_filter1d(lean, wide, axis=0), config.lean_sigma, axis=0, mode="nearest")
     rate = 1.0 / config.lean_frames_per_radian
-    lean = _paced(lean, rate, config.crouch_sigma, storyboard)
+    lean = _paced(lean, rate, storyboard, config)
     return _each_no_deeper(out, lean, _leaned, objects, rate)

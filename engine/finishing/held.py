@@ -18,7 +18,7 @@ that gap).
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 
 from ..body import BONES, body_points
 from ..camera import StoryboardCamera
@@ -33,6 +33,7 @@ from ..synth.reach import heading_of, wrap_angle, yaw_matrix
 from ..synth.trajectory import smoothstep
 from .blend import ease_frames, ease_jumps, eased_push
 from .contacts import ContactConfig, anchor_table, arm_lengths, forward_of, object_anchors, span_weight
+from .keys import room_from_keys
 
 _ARM = [*ELBOWS, *HANDS]
 MIN_APART = 0.3   # m between two holders' chests, under which the line between them turns too fast
@@ -400,7 +401,8 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
     the shoulder. The move eases in and out over `blend_frames` around each hold and is zero on
     the person's sketched keyframes, where the sketch says where they stand; away from them it
     grows by at most a metre per `frames_per_metre` frames (a hold drawn right after a key far
-    from the object lunged a carrier 76 cm to it and back in a third of a second). A holder
+    from the object lunged a carrier 76 cm to it and back in a third of a second), easing out of
+    the key (key_ease_frames) and into that limit (step_ease_frames). A holder
     whose body is inside an object that others hold too steps back out of it the same way: two
     carriers facing each other across a box, drawn closer than the box is deep, had it 5 cm
     inside a chest, and pushes from the two of them on the box cancel (_clear_of_people).
@@ -413,11 +415,7 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
         return joints
     k = anchor_table(storyboard).shape[1]
     frames = np.arange(n)
-    room = np.full((n, h), np.inf)  # how far (m) a person may have moved: 0 on their keyframes
-    for a, agent in enumerate(storyboard.agents):
-        keys = np.array([key.frame for key in storyboard.keyposes if key.agent == agent.id])
-        if len(keys):
-            room[:, a] = np.min(np.abs(frames[:, None] - keys[None]), axis=1) / config.frames_per_metre
+    room = room_from_keys(storyboard, n, 1.0 / config.frames_per_metre, config.key_ease_frames)
     # The object where the hands put it now; refitting it to moved hands would carry it away
     # with the person stepping towards it.
     held = hold_object(joints, obj_pose, storyboard, config)
@@ -455,7 +453,11 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
         step = need / np.maximum(weight, 1.0)[..., None]          # the short hands' shortfalls averaged
         moved += gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
         length = np.maximum(norm(moved), 1e-9)
-        moved *= np.minimum(1.0, room / length)[..., None]
+        kept = np.minimum(1.0, room / length)     # the share of the step its room allows ...
+        if ease := config.step_ease_frames:       # ... eased where it starts to bind (cut there, it turned back in a frame)
+            kept = np.minimum(kept, gaussian_filter1d(minimum_filter1d(kept, 2 * ease + 1, axis=0), ease / 2,
+                                                      axis=0, mode="nearest"))
+        moved *= kept[..., None]
         joints = start + moved[:, :, None]
     return joints
 

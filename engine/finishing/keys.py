@@ -14,6 +14,19 @@ def key_frames(storyboard: Storyboard) -> list[list[int]]:
             for a in storyboard.agents]
 
 
+def room_from_keys(storyboard: Storyboard, n: int, rate: float, bend: float) -> np.ndarray:
+    """(n, H) how far (m) each person may have been moved off the motion the warp placed on their
+    key frames: none there, growing by `rate` a frame away from them, the growth eased in over
+    `bend` frames (a cone's corner at a key is a one-frame kink: 4 cm of the whole body at 25
+    frames a metre; bend 0 keeps it); unbounded for a person with no keys."""
+    frames, out = np.arange(n), np.full((n, len(storyboard.agents)), np.inf)
+    for a, keys in enumerate(key_frames(storyboard)):
+        if keys:
+            d = np.min(np.abs(frames[:, None] - np.asarray(keys)[None]), axis=1)
+            out[:, a] = rate * np.where(d < bend, d ** 2 / (2 * max(bend, 1e-9)), d - bend / 2)
+    return out
+
+
 def spread(n: int, keys: list[int], values: np.ndarray, falloff: int) -> np.ndarray:
     """Offsets at sorted key frames, values (K, ...), spread over n frames -> (n, ...): linear
     between keys, fading to zero over `falloff` frames (smoothstep) before the first and after

@@ -7,7 +7,7 @@ elbow turns smoothly (reach_contacts calls it); so does a knee about the hip-ank
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import binary_dilation, gaussian_filter1d
 
 from ..body import JOINT_RADII
 from ..geometry.rotations import normalize
@@ -52,7 +52,10 @@ def clear_knees(joints: np.ndarray, obj_pose: np.ndarray, specs: list[ObjectSpec
         r, m, e = (joints[..., j, :] for j in (hip, knee, ankle))                 # (N, H, 3)
         sunk = limb_penetration(r.reshape(-1, 1, 3), m.reshape(-1, 1, 3), e.reshape(-1, 1, 3),
                                 np.repeat(obj_pose, joints.shape[1], 0), specs, LEG_RADII, ground=False)
-        frames, people = np.nonzero(sunk.reshape(joints.shape[:2]) > 0)
+        # Turned over a few frames either side as well, where the knee is clear, so that it swings
+        # out and back smoothly (a knee one frame in a box swung 16 cm out and back at once).
+        around = np.ones((2 * config.knee_ease_frames + 1, 1), bool)
+        frames, people = np.nonzero(binary_dilation(sunk.reshape(joints.shape[:2]) > 0, around))
         if not len(frames):
             continue
         runs = frame_runs(frames, people)

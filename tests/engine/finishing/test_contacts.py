@@ -8,6 +8,7 @@ import pytest
 
 from engine.body import body_points
 from engine.controls import build_controls
+from engine.finishing.blend import spike
 from engine.finishing.contacts import ContactConfig, object_anchors, reach_contacts
 from engine.finishing.held import BODY_SPHERES, _within_holders_reach, _within_reach_across, _yaw_of, hold_object, step_within_reach
 from engine.metrics import anchor_error
@@ -375,6 +376,8 @@ def test_a_holder_out_of_reach_steps_towards_the_grip_but_not_off_a_keyframe():
     # Away from a key the step grows by at most a metre per frames_per_metre frames (no lunge).
     from_key = np.abs(np.arange(len(joints))[:, None] - keys_b[None]).min(1)
     assert (np.linalg.norm(moved[:, 1, 0], axis=-1) <= from_key / config.frames_per_metre + 1e-9).all()
+    # ... and neither turns at a key nor where it meets that limit in a frame (4 and 6 cm kinks before).
+    assert spike(moved[:, 1, 0]).max() < 0.015
 
 
 def test_a_shared_hold_sits_within_every_holders_vertical_reach():

@@ -67,3 +67,24 @@ def test_a_knee_crouching_into_a_box_on_the_floor_swivels_out_and_the_feet_stay(
     far = obj_pose.copy()
     far[..., 0] += 2.0
     assert np.array_equal(clear_knees(pose, far, [box], ContactConfig()), pose)
+
+
+def test_a_knee_one_frame_in_a_box_swings_out_and_back_over_frames():
+    """A knee brushing a box for one frame swivels over the frames around it too, not 16 cm in one."""
+    n = 15
+    pose = np.tile(rest_pose(), (n, 1, 1, 1)).astype(float)
+    hip, knee, ankle = HIPS[0], KNEES[0], ANKLES[0]
+    thigh = np.linalg.norm(pose[0, 0, knee] - pose[0, 0, hip])
+    pose[..., hip, :] = pose[..., ankle, :] + [0.0, 0.55, 0.0]
+    half = np.linalg.norm(pose[0, 0, hip] - pose[0, 0, ankle]) / 2
+    pose[..., knee, :] = (pose[..., hip, :] + pose[..., ankle, :]) / 2 + [0.0, 0.0, np.sqrt(thigh ** 2 - half ** 2)]
+    place = pose[0, 0, knee] + [0.0, -0.2, 0.15]
+    obj_pose = np.tile([place[0], 0.0, place[2], 1.0, 0.0, 0.0, 0.0], (n, 1, 1))
+    obj_pose[np.arange(n) != 7, 0, 0] += 2.0                          # there at frame 7 only
+    out = clear_knees(pose, obj_pose, [ObjectSpec("box")], ContactConfig())
+    swing = np.linalg.norm(out[:, 0, knee] - pose[:, 0, knee], axis=-1)
+    steps = np.linalg.norm(np.diff(out[:, 0, knee], axis=0), axis=-1)
+    assert swing[7] > 0.05 and (swing[[6, 8]] > 0.0).all()            # turned either side too
+    assert steps.max() < 0.6 * swing[7]                               # at once: all of it in a frame
+    step = clear_knees(pose, obj_pose, [ObjectSpec("box")], ContactConfig(knee_ease_frames=0))
+    assert np.linalg.norm(np.diff(step[:, 0, knee], axis=0), axis=-1).max() > 0.9 * swing[7]
