@@ -453,8 +453,10 @@ def step_within_reach(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Stor
         step = need / np.maximum(weight, 1.0)[..., None]          # the short hands' shortfalls averaged
         moved += gaussian_filter1d(step, config.reach_smoothing, axis=0, mode="nearest")
         length = np.maximum(norm(moved), 1e-9)
-        kept = np.minimum(1.0, room / length)     # the share of the step its room allows ...
-        if ease := config.step_ease_frames:       # ... eased where it starts to bind (cut there, it turned back in a frame)
+        # The share of the step its room allows, eased where it starts to bind (cut off there at
+        # once, the body turned back in a frame).
+        kept = np.minimum(1.0, room / length)
+        if ease := config.step_ease_frames:
             kept = np.minimum(kept, gaussian_filter1d(minimum_filter1d(kept, 2 * ease + 1, axis=0), ease / 2,
                                                       axis=0, mode="nearest"))
         moved *= kept[..., None]

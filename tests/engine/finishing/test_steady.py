@@ -177,6 +177,7 @@ def test_a_stretch_the_first_smoothing_would_make_pop_more_is_smoothed_less(monk
     monkeypatch.setattr(engine.finishing, "spread_flips", lambda joints, rotations, offsets: (rotations, np.zeros(0, int)))
     # Its holder's step towards the box kinked at a key as it did then (since eased: key_ease_frames).
     kinked = ContactConfig(key_ease_frames=0.0)
-    first_only = FinishConfig(steady=SteadyConfig(popping_weights=SteadyConfig().popping_weights[:1]), contact=kinked)
+    first_only = FinishConfig(steady=SteadyConfig(popping_weights=SteadyConfig().popping_weights[:1]),
+                              contact=kinked)
     assert pop(finish(clip, sb, first_only).joints) > 0.1
     assert pop(finish(clip, sb, FinishConfig(contact=kinked)).joints) < 0.085
