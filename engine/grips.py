@@ -29,6 +29,8 @@ UP = np.array([0.0, 1.0, 0.0])
 TURNS = 72          # turns of an object about the vertical tried when fitting its grips to drawn hands
 NEAR_FRAMES = 8     # a person's keypose this close to a shared hold draws their hands in it
 ONE_FACE = 0.01     # m: two grips whose midpoint is this far off the object's centre share a face
+MOST_SPAN = 1.0     # m: the farthest apart one person's two grips may be (a table's long side, 1.2-1.4 m:
+                    # a carrier fitted to it had both hands 45-60 cm off their grips the whole carry)
 
 
 def _overlap(a: Contact, b: Contact) -> bool:
@@ -70,11 +72,13 @@ def _anchors(storyboard: Storyboard, contact: Contact) -> np.ndarray:
 def _uncrossed(storyboard: Storyboard, left: Contact, right: Contact) -> bool:
     """Whether a person holding `left`'s and `right`'s grips of one object at once holds them as
     hands can: both grips on one face (not diagonal corners, whose midpoint is the object's
-    centre), standing off that face, facing it, the left hand on their left."""
+    centre) and within MOST_SPAN of each other, standing off that face, facing it, the left hand on
+    their left."""
     anchors = _anchors(storyboard, left)
     a, b = anchors[left.anchor], anchors[right.anchor]
     outward = (a + b) * (1.0, 0.0, 1.0)              # from the object's centre to the face held
-    return bool(np.linalg.norm(outward) > ONE_FACE and np.cross(UP, -outward) @ (a - b) >= 0.0)
+    return bool(np.linalg.norm(outward) > ONE_FACE and np.linalg.norm(a - b) <= MOST_SPAN
+                and np.cross(UP, -outward) @ (a - b) >= 0.0)
 
 
 def _held_together(storyboard: Storyboard, holds: list[Contact]) -> list[tuple[list[int], np.ndarray | None]]:

@@ -121,3 +121,14 @@ def test_one_holder_on_diagonal_corners_holds_one_face():
             c.start = 50                                  # A holds alone
     assert faces_held(with_grips_fitted(sb))[0] in ({0, 1}, {2, 3}, {0, 2}, {1, 3})   # an end or a side
     assert with_grips_fitted(with_grips_fitted(sb)).contacts == with_grips_fitted(sb).contacts
+
+
+def test_carriers_of_a_table_joined_to_its_long_sides_hold_its_ends():
+    """Each carrier joined to the two grips of one long side of a table (1.2 m apart): on one face,
+    but no carry holds it so (fitted to it, both hands were 45-60 cm off their grips the whole
+    carry). Fitted to the drawn hands, each holds an end, as the synthesizer's carriers do."""
+    sb = sketchify(synthesize("carry_together", 5, fps=20), 4, 0.0, 5)
+    assert sb.objects[0].spec.type == "table" and sorted(faces_held(sb), key=min) == [{0, 1}, {2, 3}]
+    for c in sb.contacts:
+        c.anchor = {("A", "left"): 1, ("A", "right"): 3, ("B", "left"): 2, ("B", "right"): 0}[(c.agent, c.hand)]
+    assert sorted(faces_held(with_grips_fitted(sb)), key=min) == [{0, 1}, {2, 3}]
