@@ -8,7 +8,8 @@ put the giver's hands on the taker's, 58 cm from where they were drawn. A person
 crossed (the left on the grip at their right): no turn of the box fits both hands, and at the
 hand-off the hands ended 20 cm off their grips. Or on diagonal corners (the near grip of one end,
 the far one of the other), which no hand reaches without an arm across the object: two lifters
-fitted so to their drawing had wrists 8-13 cm inside the box and a hand 18 cm off its grip. A
+fitted so to their drawing had wrists 8-13 cm inside the box and a hand 18 cm off its grip. Or
+on one face but wider apart than a carry holds (a table's long side: hands 45-60 cm off). A
 storyboard is read with these mended, and the app mends them as contacts are drawn.
 """
 from __future__ import annotations
