@@ -57,8 +57,9 @@ class ContactConfig:
                                        # 0.05, forearms stayed in boxes beside their grips: artist-style
                                        # penetration within 2 cm 85, 81, 76 -> 89, 86, 79 of 100 on
                                        # three drawings of 50 scenes, pops the same)
-    knee_ease_frames: int = 4      # frames either side of a knee's stay in an object over which it swivels
-                                   # too (none: a one-frame stay swung the knee 16 cm out and back)
+    knee_ease_frames: int = 4      # frames either side of a knee's (or a cleared elbow's) stay in an object
+                                   # over which it swivels too (none: a one-frame stay swung the knee
+                                   # 16 cm out and back)
     swivel_sigma: float = 0.75     # frames at TUNED_FPS; smoothing of the chosen swivel angles (1.5
                                    # turned forearms back into boxes beside side grips: artist-style
                                    # penetration within 2 cm 14 -> 15 of 20, pops the same)

@@ -47,20 +47,34 @@ def clear_knees(joints: np.ndarray, obj_pose: np.ndarray, specs: list[ObjectSpec
     """joints (N, H, 22, 3) with every knee that passes through an object (obj_pose (N, O, 7))
     swivelled about its hip-ankle line, as swivel_clear turns elbows (config: a ContactConfig);
     hips, ankles and feet stay. The floor is left out: a knee kneels on it."""
+    return _swivelled_clear(joints, obj_pose, specs, config, zip(HIPS, KNEES, ANKLES), LEG_RADII, ground=False)
+
+
+def clear_elbows(joints: np.ndarray, obj_pose: np.ndarray, specs: list[ObjectSpec], config) -> np.ndarray:
+    """joints (N, H, 22, 3) with every arm that passes through an object (obj_pose (N, O, 7)) or
+    the floor swivelled about its shoulder-wrist line, as clear_knees turns knees: the steadying
+    after reach_contacts turned forearms back into boxes beside their grips (by up to 4 cm)."""
+    return _swivelled_clear(joints, obj_pose, specs, config, zip(SHOULDERS, ELBOWS, HANDS), ARM_RADII, ground=True)
+
+
+def _swivelled_clear(joints: np.ndarray, obj_pose: np.ndarray, specs: list[ObjectSpec], config, limbs,
+                     radii: np.ndarray, ground: bool) -> np.ndarray:
+    """joints (N, H, 22, 3) with the middle joint of each limb (root, middle, end joint) that
+    passes through an object swivelled off it (swivel_clear), and over config.knee_ease_frames
+    either side, where it is clear, so that it swings out and back smoothly (a knee one frame in
+    a box swung 16 cm out and back at once)."""
     out = joints.copy()
-    for hip, knee, ankle in zip(HIPS, KNEES, ANKLES):
-        r, m, e = (joints[..., j, :] for j in (hip, knee, ankle))                 # (N, H, 3)
+    for root, mid, end in limbs:
+        r, m, e = (joints[..., j, :] for j in (root, mid, end))                  # (N, H, 3)
         sunk = limb_penetration(r.reshape(-1, 1, 3), m.reshape(-1, 1, 3), e.reshape(-1, 1, 3),
-                                np.repeat(obj_pose, joints.shape[1], 0), specs, LEG_RADII, ground=False)
-        # Turned over a few frames either side as well, where the knee is clear, so that it swings
-        # out and back smoothly (a knee one frame in a box swung 16 cm out and back at once).
+                                np.repeat(obj_pose, joints.shape[1], 0), specs, radii, ground)
         around = np.ones((2 * config.knee_ease_frames + 1, 1), bool)
         frames, people = np.nonzero(binary_dilation(sunk.reshape(joints.shape[:2]) > 0, around))
         if not len(frames):
             continue
         runs = frame_runs(frames, people)
-        out[frames, people, knee] = swivel_clear(r[frames, people], m[frames, people], e[frames, people],
-                                                 obj_pose[frames], specs, config, runs, LEG_RADII, ground=False)
+        out[frames, people, mid] = swivel_clear(r[frames, people], m[frames, people], e[frames, people],
+                                                obj_pose[frames], specs, config, runs, radii, ground)
     return out
 
 

@@ -278,6 +278,25 @@ def test_a_box_handed_over_is_pushed_out_of_the_giver_who_let_go_of_it():
     assert held[0, 0, 2] > giver[0, 2] + 0.1                                               # towards the taker
 
 
+def test_a_held_box_whose_fit_jumps_is_smoothed_round_its_holder_not_through_the_hips():
+    """Where a second holder takes hold, the hands' fit of a box jumps (by 18 cm in a frame); the
+    carried path smoothed over it passed through the hips. Here the fit jumps from one side of
+    the holder to the other, both clear of the body."""
+    n, jump = 30, 15
+    sb = Storyboard(length=n, agents=[Agent("A")], objects=[SceneObject("box", ObjectSpec("box"))],
+                    contacts=[Contact("A", "left", 0, n - 1, "box", 0), Contact("A", "right", 0, n - 1, "box", 2)])
+    spec = sb.objects[0].spec
+    body = rest_pose()
+    joints = np.tile(body, (n, 1, 1, 1)).reshape(n, 1, 22, 3)
+    for frames, side in ((slice(0, jump), 1.0), (slice(jump, n), -1.0)):
+        base = body[0] + (side * 0.45, -spec.size[1] / 2, 0.0)          # the box beside the hips
+        joints[frames, 0, list(HANDS)] = base + spec.anchors[[0, 2]]
+    held = hold_object(joints, np.zeros((n, 1, 7)), sb)
+    points, radii = body_points(joints[:, 0])
+    local = world_to_local(points[:, BODY_SPHERES], held[:, 0])
+    assert spec.penetration_local(local, radii[BODY_SPHERES]).max() < 0.01
+
+
 def test_one_holder_turns_the_object_with_their_chest_not_their_wrists():
     sb, joints = one_person()
     wrists = list(HANDS)

@@ -1,12 +1,12 @@
 """Finishing, swivel: an elbow whose arm passes through an object turns about the shoulder-wrist
 line to where it does not, keeping both bones, and over frames gradually; so does a knee about
-the hip-ankle line."""
+the hip-ankle line, and (after the steadying) an elbow wherever its arm is."""
 import numpy as np
 
 from engine.finishing.contacts import ContactConfig
-from engine.finishing.swivel import LEG_RADII, clear_knees, limb_penetration, swivel_clear
+from engine.finishing.swivel import LEG_RADII, clear_elbows, clear_knees, limb_penetration, swivel_clear
 from engine.objects import ObjectSpec
-from engine.skeleton import ANKLES, HIPS, KNEES, rest_pose
+from engine.skeleton import ANKLES, ELBOWS, HANDS, HIPS, KNEES, SHOULDERS, rest_pose
 
 
 def test_an_elbow_in_an_object_swivels_out_keeping_its_bones():
@@ -88,3 +88,26 @@ def test_a_knee_one_frame_in_a_box_swings_out_and_back_over_frames():
     assert steps.max() < 0.6 * swing[7]                               # at once: all of it in a frame
     step = clear_knees(pose, obj_pose, [ObjectSpec("box")], ContactConfig(knee_ease_frames=0))
     assert np.linalg.norm(np.diff(step[:, 0, knee], axis=0), axis=-1).max() > 0.9 * swing[7]
+
+
+def test_an_arm_through_a_box_swivels_out_and_only_its_elbow_moves():
+    """clear_elbows, run on whole bodies after the steadying: the steadying turned forearms back
+    into boxes beside their grips."""
+    n = 6
+    pose = np.tile(rest_pose(), (n, 1, 1, 1)).astype(float)              # (N, 1, 22, 3)
+    shoulder, elbow, wrist = SHOULDERS[0], ELBOWS[0], HANDS[0]
+    pose[..., shoulder, :], pose[..., wrist, :] = [0.0, 1.4, 0.0], [0.45, 1.0, 0.0]
+    pose[..., elbow, :] = [0.3, 1.45, 0.0]                                 # bent up into the box
+    box = ObjectSpec("box")
+    obj_pose = np.tile([0.35, 1.3, 0.0, 1.0, 0.0, 0.0, 0.0], (n, 1, 1))
+    arm = lambda j: limb_penetration(j[:, 0, shoulder, None], j[:, 0, elbow, None], j[:, 0, wrist, None],
+                                     obj_pose, [box])[:, 0]
+    assert arm(pose).min() > 0.05
+    out = clear_elbows(pose, obj_pose, [box], ContactConfig())
+    assert arm(out).max() <= 0.0
+    assert np.flatnonzero(np.any(out != pose, axis=-1)[0, 0]).tolist() == [elbow]
+    for a in (shoulder, wrist):
+        np.testing.assert_allclose(np.linalg.norm(out[..., elbow, :] - out[..., a, :], axis=-1),
+                                   np.linalg.norm(pose[..., elbow, :] - pose[..., a, :], axis=-1))
+    obj_pose[..., 0] += 2.0
+    assert np.array_equal(clear_elbows(pose, obj_pose, [box], ContactConfig()), pose)
