@@ -47,6 +47,11 @@ class ArtistConfig:
     corner_jitter_m: float = 0.02
 
 
+# Drawn more roughly still (artist_check --harsh): a check that the finishing was not tuned to the above.
+HARSH = ArtistConfig(stretch=0.18, joint_offset_m=(0.03, 0.05), key_shift=6, span_shift=6, stroke_points=(5, 12),
+                     wobble_m=0.03, corner_jitter_m=0.04)
+
+
 def hand_drawn(clean: Storyboard, seed: int, config: ArtistConfig = ArtistConfig()) -> Storyboard:
     rng = np.random.default_rng(seed)
     sb = _with_rough_paths_and_spans(clean, rng, config)

@@ -5,7 +5,8 @@ at c6a022e, 60 further ones failed far more often (grips within 3 cm: 20 of 20 a
 This check generates Ours (seed 0, or --seed) on scenes `--first` to `--first + --scenes` of the held-out
 scenes, drawn both ways (engine.artist_sketch; `--drawing` draws them otherwise: the seeds bench
 draws with are the ones the finishing was tuned on, and at 8e79477 another drawing of the same 50
-scenes popped over 5 cm in 19 of 100 storyboards against 12), and prints, for each of ANIMATOR_TARGETS, how many
+scenes popped over 5 cm in 19 of 100 storyboards against 12; `--harsh` draws them more roughly,
+artist_sketch.HARSH), and prints, for each of ANIMATOR_TARGETS, how many
 storyboards meet it, the mean and the worst, and how far the held object drops where a hand lets
 go of it for good (the held-out motion sets it down), and what Wrist@key is made of
 (wrist_key_parts), and how many pop by a jump beyond both neighbouring steps alone (largest_jump:
@@ -17,6 +18,7 @@ import argparse
 
 import numpy as np
 
+from ..artist_sketch import HARSH, ArtistConfig
 from ..finishing.held import true_spans
 from ..finishing.steady import step_jumps
 from ..generate import generate
@@ -74,9 +76,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="the generation's seed")
     parser.add_argument("--drawing", type=int, default=0,
                         help="added to each scene's drawing seed: other drawings of the same scenes (bench uses 0)")
+    parser.add_argument("--harsh", action="store_true",
+                        help="drawn more roughly (engine.artist_sketch.HARSH: 18%% stretch, joints 3-5 cm off)")
     args = parser.parse_args(argv)
     config = ProtocolConfig(per_scenario=1, noise_scenes=0, real_windows=0, artist_scenes=args.first + args.scenes,
-                            drawing=args.drawing)
+                            drawing=args.drawing, artist=HARSH if args.harsh else ArtistConfig())
     artist = next(p for p in build_protocols(config) if p.name == "artist")
     items = artist.items[2 * args.first:]
     bundle, rows, drops, wrists, jumps = load_default(), [], [], [], []
@@ -88,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
         wrists.append(wrist_key_parts(np.asarray(clip.joints, float), np.asarray(item.reference.joints, float),
                                       item.storyboard))
     print(f"{len(items)} artist-style storyboards (scenes {args.first}-{args.first + args.scenes - 1}, drawing "
-          f"{args.drawing}), Ours, seed {args.seed}")
+          f"{args.drawing}{', harsh' if args.harsh else ''}), Ours, seed {args.seed}")
     for name, bound in ANIMATOR_TARGETS.items():
         values = np.array([r[name] for r in rows])
         print(f"{name:10s} within {bound:g}: {np.sum(values <= bound):3d}/{len(values)}   "

@@ -32,7 +32,7 @@ from ..sketchify import sketchify
 from ..storyboard import Storyboard
 from ..synth import SCENARIOS, synthesize
 from ..synth.captions import caption
-from ..artist_sketch import hand_drawn, posed_with_tools
+from ..artist_sketch import ArtistConfig, hand_drawn, posed_with_tools
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 RESERVED_TEST_SEEDS = range(0, 50)      # the seeds the split rule assigns to test (see docstring)
@@ -48,6 +48,7 @@ class ProtocolConfig:
     noise_levels: tuple[float, ...] = NOISE_LEVELS
     artist_scenes: int = 10            # scenes drawn both ways by engine.artist_sketch
     drawing: int = 0                   # added to each scene's seed for its artist-style drawing
+    artist: ArtistConfig = field(default_factory=ArtistConfig)   # how roughly it is drawn
     text_noise: tuple[float, ...] = (0.0, 0.6)   # noise levels of the sketch+text storyboards
     real_windows: int = 3              # windows of the held-out salsa take
     window: int = 120                  # frames per real window (6 s at 20 fps)
@@ -152,7 +153,7 @@ def build_protocols(config: ProtocolConfig = ProtocolConfig()) -> list[Protocol]
     drawn = scenes[:config.artist_scenes]
     artist = Protocol("artist", "Drawn the way artists draw (by hand, and posed with the app's tools)",
                       [BenchItem(f"{i} {kind}", kind, 0.0,
-                                 make(sketchify(c, config.keyframes, 0.0, seed), seed + config.drawing), c)
+                                 make(sketchify(c, config.keyframes, 0.0, seed), seed + config.drawing, config.artist), c)
                        for i, c, seed in drawn for kind, make in ARTIST_KINDS.items()],
                       [f"{len(drawn)} scenes x {', '.join(ARTIST_KINDS)} (engine.artist_sketch: figures stretched "
                        f"up to 12%, joints 2-3 cm off, spine and collars often unplaced, keys and contact spans "

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from engine.artist_sketch import HARSH, ArtistConfig
 from engine.bench.command import command_line
 from engine.bench.diagnostics import nudged
 from engine.bench.protocol import ProtocolConfig, build_protocols
@@ -85,6 +86,16 @@ def test_another_drawing_draws_the_same_artist_scenes_otherwise(tmp_path):
         assert a.reference is c.reference or np.array_equal(a.reference.joints, c.reference.joints)
         assert np.array_equal(a.storyboard.keyposes[0].points, b.storyboard.keyposes[0].points)
         assert not np.array_equal(a.storyboard.keyposes[0].points, c.storyboard.keyposes[0].points)
+
+
+def test_a_harsher_drawing_draws_its_strokes_with_fewer_points(tmp_path):
+    def strokes(artist):
+        config = ProtocolConfig(scenarios=("let_go",), per_scenario=1, noise_scenes=0, artist_scenes=3,
+                                data_dir=tmp_path, shared_dir=tmp_path, artist=artist)
+        items = next(p for p in build_protocols(config) if p.name == "artist").items
+        return [len(t.points) for i in items for t in i.storyboard.trajectories]
+    plain, harsh = strokes(ArtistConfig()), strokes(HARSH)
+    assert max(harsh) <= HARSH.stroke_points[1] < max(plain) and np.mean(harsh) < np.mean(plain)
 
 
 def test_markdown_has_every_table_and_the_command(tiny_run):
