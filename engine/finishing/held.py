@@ -98,18 +98,20 @@ def _clear_of_people(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints:
     the giver let go). Pushes from holders facing each other cancel (there is no room between
     them). The push eases over `sigma` frames as an envelope (blend.eased_push): pushed at one
     frame or two, the held path's smoothing left a box 11 cm inside a chest. Returns pos (N, 3)."""
-    n = len(pos)
     points, radii = _body_spheres(joints)
     pelvis = joints[:, :, 0]
     holders = np.sum(holding[..., None] * pelvis, axis=1) / np.maximum(holding.sum(axis=1), 1)[:, None]  # (N, 3)
     # In front of a holder; from anyone else towards the holders, in whose hands it is.
     away = np.where(holding[..., None], forward_of(joints), normalize((holders[:, None] - pelvis) * (1.0, 0.0, 1.0)))
-    held = holding.any(axis=1, keepdims=True)                          # (N, 1): pushed only while held
-    pushed = pos
+    sunk = np.flatnonzero(holding.any(axis=1))    # pushed only while held, while anything is inside
+    pushed = pos.copy()
     for _ in range(iterations):
-        local = world_to_local(points.reshape(n, -1, 3), pose_array(pushed, yaw)).reshape(points.shape)
-        depth = np.max(spec.penetration_local(local, radii), axis=-1)  # (N, H)
-        pushed = pushed + np.sum(np.where(held, depth, 0)[..., None] * away, axis=1)
+        if not len(sunk):
+            break
+        local = world_to_local(points[sunk].reshape(len(sunk), -1, 3), pose_array(pushed[sunk], yaw[sunk]))
+        depth = np.max(spec.penetration_local(local.reshape(points[sunk].shape), radii), axis=-1)   # (F, H)
+        pushed[sunk] += np.sum(depth[..., None] * away[sunk], axis=1)
+        sunk = sunk[depth.any(axis=1)]           # a frame clear of everyone stays so
     return pos + eased_push(pushed - pos, sigma) if np.any(pushed != pos) else pos
 
 
