@@ -190,7 +190,7 @@ def _polished(joints: np.ndarray, offsets: np.ndarray, obj_pose: np.ndarray | No
 
 
 def _cleared(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard, config: ContactConfig) -> np.ndarray:
-    """joints (N, H, 22, 3) with feet, knees and hands out of the objects at obj_pose (N, O, 7)."""
+    """joints (N, H, 22, 3) with feet, knees, hands and elbows out of the objects at obj_pose (N, O, 7)."""
     joints = clear_feet(joints, obj_pose, storyboard, config.clear_frames)
     specs = [o.spec for o in storyboard.objects]
     joints = clear_hands(clear_knees(joints, obj_pose, specs, config), obj_pose, storyboard, config.clear_frames)
