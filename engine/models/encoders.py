@@ -69,6 +69,14 @@ def _bool(mask: torch.Tensor) -> torch.Tensor:
     return mask > 0.5 if mask.dtype != torch.bool else mask
 
 
+def _where_placed(net: nn.Module, x: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
+    """net on the rows of x (..., F) that `rows` (...) bool marks, zero on the others: most of a
+    storyboard's frames place nothing, so the network runs on the few that do."""
+    out = x.new_zeros(rows.shape + (net[-1].out_features,))
+    out[rows] = net(x[rows])
+    return out
+
+
 def time_features(t: torch.Tensor) -> torch.Tensor:
     """Normalized time (...) in [0, 1] -> (..., 2 * TIME_FREQUENCIES) sin/cos features."""
     freq = math.pi * 2.0 ** torch.arange(TIME_FREQUENCIES, dtype=t.dtype, device=t.device)
@@ -117,7 +125,7 @@ class MaskedSetEncoder(nn.Module):
         self.empty = nn.Parameter(torch.randn(d_e))
 
     def forward(self, tokens: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        x = self.token(tokens)
+        x = _where_placed(self.token, tokens, mask)
         m = mask[..., None].to(x.dtype)
         count = m.sum(1)
         mean = (x * m).sum(1) / count.clamp_min(1.0)
@@ -225,22 +233,26 @@ class JointLifter(nn.Module):
                 target: torch.Tensor) -> torch.Tensor:
         """One group of joints (a pose, or the trajectory points of one frame) per row:
         uv (G, 22, 2), mask (G, 22) bool, camera (G, 3, 3), target (G, 3) -> (G, 22, 3), zero
-        where mask is False."""
-        g = uv.shape[0]
-        right, up, back = camera[:, None, 0], camera[:, None, 1], camera[:, None, 2]   # (G, 1, 3)
-        back_y = back[..., 1]
-        origin_y = target[:, None, 1] + uv[..., 0] * right[..., 1] + uv[..., 1] * up[..., 1]  # (G, 22)
+        where mask is False. Only the P placed joints are computed (a frame's path is one or two
+        of its 22: the dense pass spent 90% of the lifting on joints masked out after)."""
+        group, joint = torch.nonzero(mask, as_tuple=True)                       # (P,), (P,)
+        uv_p, cam = uv[group, joint], camera[group]                             # (P, 2), (P, 3, 3)
+        right, up, back = cam[:, 0], cam[:, 1], cam[:, 2]                       # (P, 3)
+        origin_y = target[group, 1] + uv_p[:, 0] * right[:, 1] + uv_p[:, 1] * up[:, 1]
         # Regularized solve of origin_y - depth * back_y = rest height: exact for a tilted
         # camera, fading to the target's depth for a level one (where height says nothing).
-        prior = (origin_y - self.rest_height) * back_y / (back_y ** 2 + self.LEVEL_CAMERA ** 2)
-        mf = mask[..., None].to(uv.dtype)
-        centre = (uv * mf).sum(1, keepdim=True) / mf.sum(1, keepdim=True).clamp_min(1.0)
-        point = torch.cat([uv, uv - centre, prior[..., None] * 0.1, mf, self.joint_embed.expand(g, -1, -1),
-                           camera.reshape(g, 1, 9).expand(g, NUM_JOINTS, 9)], -1) * mf
-        ctx = (self.context(point) * mf).sum(1, keepdim=True) / mf.sum(1, keepdim=True).clamp_min(1.0)
-        depth = prior + self.head(torch.cat([point, ctx.expand(-1, NUM_JOINTS, -1)], -1))[..., 0]
-        p = target[:, None] + uv[..., :1] * right + uv[..., 1:] * up - depth[..., None] * back
-        return p * mf
+        prior = (origin_y - self.rest_height[joint]) * back[:, 1] / (back[:, 1] ** 2 + self.LEVEL_CAMERA ** 2)
+        count = torch.bincount(group, minlength=uv.shape[0]).clamp_min(1).to(uv.dtype)[:, None]   # (G, 1)
+
+        def group_mean(x: torch.Tensor) -> torch.Tensor:   # (P, C) -> each point's group's mean (P, C)
+            return (x.new_zeros(uv.shape[0], x.shape[1]).index_add_(0, group, x) / count)[group]
+
+        point = torch.cat([uv_p, uv_p - group_mean(uv_p), prior[:, None] * 0.1, torch.ones_like(prior[:, None]),
+                           self.joint_embed[joint], cam.reshape(-1, 9)], -1)
+        depth = prior + self.head(torch.cat([point, group_mean(self.context(point))], -1))[:, 0]
+        out = uv.new_zeros(mask.shape + (3,))
+        out[group, joint] = target[group] + uv_p[:, :1] * right + uv_p[:, 1:] * up - depth[:, None] * back
+        return out
 
 
 @dataclass
@@ -321,7 +333,7 @@ class TrajectoryPath(nn.Module):
         rel = (t3d - controls["cam_target"][:, None, None, None]) * mf[..., None]
         feat = torch.cat([rel.flatten(-2), mf, phi_frame, contact], -1)
         active = torch.maximum(on_path, contact.amax(-1))[..., None]        # zero residual when unconstrained
-        residual = frames_to_latent(self.frame(feat) * active, t_lat)       # (B, T_lat, H, d_model)
+        residual = frames_to_latent(_where_placed(self.frame, feat, active[..., 0] > 0), t_lat)   # (B, T_lat, H, d_model)
 
         phi_q = frames_to_latent(torch.cat([phi_frame, on_path[..., None]], -1), t_lat)  # (B, T_lat, H, 4)
         present = (phi_q[..., 3].amax(-1) > 0).to(t3d.dtype)               # (B, T_lat)
@@ -350,7 +362,7 @@ class KeyframeAdapter(nn.Module):
         centre = (k3d * mf[..., None]).sum(-2) / count.clamp_min(1.0)           # (B, N, H, 3)
         local = (k3d - centre[..., None, :]) * mf[..., None]
         feat = torch.cat([local.flatten(-2), centre - controls["cam_target"][:, None, None], mf], -1)
-        f = self.pose(feat) * (count > 0).to(k3d.dtype)                          # (B, N, H, d_model)
+        f = _where_placed(self.pose, feat, count[..., 0] > 0)                     # (B, N, H, d_model)
         gate = keyframe_gate(m.shape[1], t_lat, self.sigma, k3d.device)          # (T_lat, N)
         return torch.einsum("qn,bnhc->bqhc", gate, f)
 
@@ -377,8 +389,7 @@ class ObjectBranch(nn.Module):
         contact = controls["contact"].to(box.dtype).reshape(b, n, 1, -1).expand(b, n, o, -1)
         feat = torch.cat([box * bm[..., None], bm[..., None].float(), path * pm[..., None],
                           pm[..., None].float(), ground, contact], -1)
-        active = (bm | pm | (contact.amax(-1) > 0)).to(box.dtype)[..., None]
-        return frames_to_latent(self.frame(feat) * active, t_lat)
+        return frames_to_latent(_where_placed(self.frame, feat, bm | pm | (contact.amax(-1) > 0)), t_lat)
 
 
 # ---- the conditioner ----------------------------------------------------------------------
