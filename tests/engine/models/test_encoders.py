@@ -155,6 +155,26 @@ def test_lifter_prior_and_training():
     assert loss.item() < 0.5 * first and set(parts) == {"lift_kf", "lift_tr"}
 
 
+def test_what_a_storyboard_leaves_unplaced_changes_nothing():
+    # The lifter and the per-frame branches run only on the rows a storyboard places: values
+    # left under its masks (an editor's stale points) must not reach the conditioning.
+    torch.manual_seed(0)
+    cond = SketchConditioner().eval()
+    b = consistent_batch(2)
+    noisy = dict(b)
+    for uv, mask in (("kp2d", "kp_mask"), ("tr2d", "tr_mask")):
+        noisy[uv] = b[uv] + 5.0 * torch.randn(b[uv].shape) * (b[mask] == 0)[..., None]
+    with torch.no_grad():
+        clean, dirty = cond.encode(b, T_LAT), cond.encode(noisy, T_LAT)
+        alone = cond.lift({k: v[1:] for k, v in b.items()})
+    lifted = clean.lifted.keyposes
+    assert torch.equal(lifted[b["kp_mask"] == 0], torch.zeros_like(lifted[b["kp_mask"] == 0]))
+    assert torch.allclose(alone.keyposes, lifted[1:], atol=1e-6)      # each pose lifted on its own
+    assert torch.allclose(dirty.lifted.trajectories, clean.lifted.trajectories, atol=1e-6)
+    assert torch.allclose(dirty.conditioning.residual, clean.conditioning.residual, atol=1e-5)
+    assert torch.allclose(dirty.conditioning.embed, clean.conditioning.embed, atol=1e-5)
+
+
 def test_alignment_pulls_matched_pairs_together():
     torch.manual_seed(0)
     cond = SketchConditioner()
