@@ -115,14 +115,12 @@ def _clear_of_people(pos: np.ndarray, yaw: np.ndarray, spec: ObjectSpec, joints:
     return pos + eased_push(pushed - pos, sigma) if np.any(pushed != pos) else pos
 
 
-def _kept_at_rest(push: np.ndarray, carried: np.ndarray) -> np.ndarray:
-    """A carried object's push (N, 3) out of the people, with each frame it rests (not `carried`
-    (N,) bool) given the push of the last frame it was carried, or before any the first: put down
-    where the push left it, it stays there (eased back, a box set down slid 2 cm after it)."""
-    frames = np.arange(len(push))
-    last = np.maximum.accumulate(np.where(carried, frames, -1))
-    source = np.where(carried, frames, np.where(last >= 0, last, np.argmax(carried)))
-    return push[source]
+def _carried_forward(values: np.ndarray, defined: np.ndarray) -> np.ndarray:
+    """values (N, ...) with each frame not `defined` (N,) bool given the value of the last defined
+    frame before it, or before any the first defined one."""
+    frames = np.arange(len(values))
+    last = np.maximum.accumulate(np.where(defined, frames, -1))
+    return values[np.where(last >= 0, last, np.argmax(defined))]
 
 
 def _within_holders_reach(move: np.ndarray, place: np.ndarray, frames: list[int], joints: np.ndarray,
@@ -305,11 +303,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
 
     fit_yaw, defined = _fit_yaw(wrists, grips, held, config.min_spread)
     # One hand cannot turn the object: keep the last defined yaw (before any, the first one).
-    if defined.any():
-        last = np.maximum.accumulate(np.where(defined, np.arange(n), -1))
-        fit_yaw = fit_yaw[np.where(last >= 0, last, np.argmax(defined))]
-    else:
-        fit_yaw = np.full(n, still_yaw)
+    fit_yaw = _carried_forward(fit_yaw, defined) if defined.any() else np.full(n, still_yaw)
     holding = held.reshape(n, h, 2).any(axis=-1)                                 # (N, H)
     fit_yaw = _carried_yaw(fit_yaw, joints, holding, config.smooth_sigma)
     fit_pos = _fit_position(wrists, grips, held, fit_yaw)
@@ -379,9 +373,10 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     # Cleared once more as carried: where a second holder takes hold, the fit jumps (18 cm in a
     # frame), and smoothed it passed through both holders' hips (artist-style penetration within
     # 2 cm on drawings 0, 7777, 500 and a harsher set, 50 scenes x 2 each: 88, 87, 79, 73 -> 89,
-    # 90, 82, 77 of 100).
+    # 90, 82, 77 of 100). Where it rests it keeps the push of the last frame it was carried: put
+    # down where the push left it, it stays there (eased back, a box set down slid 2 cm after it).
     push = _clear_of_people(pos, yaw, spec, joints, holding, config.clear_iterations, config.held_clear_frames) - pos
-    pos = pos + _kept_at_rest(push, carried)
+    pos = pos + _carried_forward(push, carried)
     return _rest_clear_of_people(pose_array(pos, yaw), joints, grips, held, spec, config)
 
 

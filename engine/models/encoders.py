@@ -332,8 +332,8 @@ class TrajectoryPath(nn.Module):
         contact = controls["contact"].to(t3d.dtype)
         rel = (t3d - controls["cam_target"][:, None, None, None]) * mf[..., None]
         feat = torch.cat([rel.flatten(-2), mf, phi_frame, contact], -1)
-        active = torch.maximum(on_path, contact.amax(-1))[..., None]        # zero residual when unconstrained
-        residual = frames_to_latent(_where_placed(self.frame, feat, active[..., 0] > 0), t_lat)   # (B, T_lat, H, d_model)
+        placed = (on_path > 0) | (contact.amax(-1) > 0)                     # zero residual when unconstrained
+        residual = frames_to_latent(_where_placed(self.frame, feat, placed), t_lat)   # (B, T_lat, H, d_model)
 
         phi_q = frames_to_latent(torch.cat([phi_frame, on_path[..., None]], -1), t_lat)  # (B, T_lat, H, 4)
         present = (phi_q[..., 3].amax(-1) > 0).to(t3d.dtype)               # (B, T_lat)
