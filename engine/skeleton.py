@@ -75,27 +75,29 @@ def bone_lengths(joints: np.ndarray) -> np.ndarray:
     return np.linalg.norm(joints - joints[..., par, :], axis=-1)
 
 
-def global_rotations(local_rot: np.ndarray) -> np.ndarray:
-    """Compose local rotations down the tree. (..., 22, 3, 3) -> (..., 22, 3, 3)."""
-    glob = [None] * NUM_JOINTS
-    for j, p in enumerate(PARENTS):
-        glob[j] = local_rot[..., j, :, :] if p < 0 else glob[p] @ local_rot[..., j, :, :]
-    return np.stack(glob, axis=-3)
-
-
 def forward_kinematics(root: np.ndarray, local_rot: np.ndarray,
                        offsets: np.ndarray = REST_OFFSETS) -> np.ndarray:
     """Joint positions from a pose.
 
     root: (..., 3) pelvis position; local_rot: (..., 22, 3, 3); offsets: (22, 3) or (..., 22, 3).
-    Returns (..., 22, 3).
+    Returns (..., 22, 3). Walked joint-major, the offsets unbroadcast (as _walk_ik).
     """
-    glob = global_rotations(local_rot)
-    offsets = np.broadcast_to(offsets, local_rot.shape[:-2] + (3,))
-    pos = [None] * NUM_JOINTS
+    rot = np.ascontiguousarray(np.moveaxis(local_rot, -3, 0))                     # (22, ..., 3, 3)
+    bones = _joint_major(offsets, local_rot.ndim - 3)[..., None]                   # (22, ..., 3, 1)
+    glob, pos = [None] * NUM_JOINTS, [None] * NUM_JOINTS
     for j, p in enumerate(PARENTS):
-        pos[j] = root if p < 0 else pos[p] + (glob[..., p, :, :] @ offsets[..., j, :, None])[..., 0]
+        if p < 0:
+            glob[j], pos[j] = rot[j], np.asarray(root)
+        else:
+            glob[j], pos[j] = glob[p] @ rot[j], pos[p] + (glob[p] @ bones[j])[..., 0]
     return np.stack(pos, axis=-2)
+
+
+def _joint_major(offsets: np.ndarray, lead: int) -> np.ndarray:
+    """Offsets (..., 22, 3) -> (22, 1, ..., 3), with ones in front of their own leading axes up to
+    `lead` of them: they broadcast against a joint-major batch (22, lead axes, 3) unbroadcast."""
+    bones = np.moveaxis(np.asarray(offsets, float), -2, 0)
+    return bones.reshape((NUM_JOINTS,) + (1,) * (lead + 2 - bones.ndim) + bones.shape[1:])
 
 
 def _depth(j: int) -> int:
@@ -146,8 +148,7 @@ def _walk_ik(joints: np.ndarray, offsets: np.ndarray, root: np.ndarray | None,
     gathers and stores are then block copies, and the offsets stay unbroadcast (a third less time)."""
     lead = joints.shape[:-2]
     at = np.ascontiguousarray(np.moveaxis(joints, -2, 0))          # (22, ..., 3)
-    bones = np.moveaxis(np.asarray(offsets, float), -2, 0)          # (22, ...', 3), ...' a suffix of ...
-    bones = bones.reshape((NUM_JOINTS,) + (1,) * (len(lead) + 2 - bones.ndim) + bones.shape[1:])
+    bones = _joint_major(offsets, len(lead))                         # (22, ..., 3)
     local = np.empty((NUM_JOINTS,) + lead + (3, 3))
     local[...] = np.eye(3)
     glob = np.empty((NUM_JOINTS + 1,) + lead + (3, 3))   # the extra last entry is the root's parent, index -1
