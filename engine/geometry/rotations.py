@@ -11,8 +11,9 @@ import numpy as np
 EPS = 1e-9
 
 
-def normalize(v: np.ndarray, axis: int = -1) -> np.ndarray:
-    return v / np.maximum(np.sqrt(np.sum(v * v, axis=axis, keepdims=True)), EPS)
+def normalize(v: np.ndarray) -> np.ndarray:
+    """(..., D) vectors scaled to unit length (zero ones stay zero)."""
+    return v / np.maximum(norm(v, keepdims=True), EPS)
 
 
 def norm(v: np.ndarray, keepdims: bool = False) -> np.ndarray:
@@ -142,9 +143,11 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     # R = c I + [v]x + v v^T / (1 + c).
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     k = 1.0 / np.maximum(1.0 + c, 1e-12)
-    out = np.stack([c + k * x * x, k * x * y - z, k * x * z + y,
-                    k * x * y + z, c + k * y * y, k * y * z - x,
-                    k * x * z - y, k * y * z + x, c + k * z * z], axis=-1).reshape(v.shape[:-1] + (3, 3))
+    kx, ky = k * x, k * y
+    kxy, kxz, kyz = kx * y, kx * z, ky * z
+    out = np.stack([c + kx * x, kxy - z, kxz + y,
+                    kxy + z, c + ky * y, kyz - x,
+                    kxz - y, kyz + x, c + k * z * z], axis=-1).reshape(v.shape[:-1] + (3, 3))
     anti = c < -1.0 + 1e-6   # near antiparallel: a half turn about an axis across a
     if np.any(anti):
         helper = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
