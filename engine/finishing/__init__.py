@@ -96,8 +96,7 @@ def consistent_skeleton(joints: np.ndarray, storyboard: Storyboard | None = None
     offsets = offsets * np.stack([scale_per_bone(s) for s in scales])[..., None]
     fitted = inverse_kinematics(joints, offsets)
     spread = [spread_flips(joints[:, h], fitted[:, h], offsets[h]) for h in people]
-    rotations = np.stack([steady_rotations(joints[:, h], root[:, h], spread[h][0], offsets[h]) for h in people], 1)
-    out = forward_kinematics(root, rotations, offsets)
+    _, out = steady_rotations(joints, root, np.stack([fit for fit, _ in spread], 1), offsets)
     for h, (_, turned) in zip(people, spread):
         if len(turned):
             feet = forward_kinematics(root[turned, h], fitted[turned, h], offsets[h])[:, list(FEET)]

@@ -108,9 +108,10 @@ def _not_deeper(shoulder: np.ndarray, elbow: np.ndarray, moved: np.ndarray, wris
 
 
 def steady_rotations(generated: np.ndarray, root: np.ndarray, rotations: np.ndarray, offsets: np.ndarray,
-                     config: LimbConfig = LimbConfig()) -> np.ndarray:
-    """Local rotations (N, 22, 3, 3) of one person whose FK pops where the generated joints
-    (N, 22, 3) do not, smoothed over time there; root (N, 3), offsets (22, 3) -> rotations.
+                     config: LimbConfig = LimbConfig()) -> tuple[np.ndarray, np.ndarray]:
+    """Local rotations (N, H, 22, 3, 3) whose FK pops where the generated joints (N, H, 22, 3) do
+    not, smoothed over time there; root (N, H, 3), offsets (H, 22, 3) -> (those rotations, their
+    FK (N, H, 22, 3)).
 
     Fitting one rigid skeleton to joints whose bones change length from frame to frame (the
     decoder's) can jolt the chain: the spine's branch fits turned the shoulders 8 cm in a frame
@@ -119,18 +120,32 @@ def steady_rotations(generated: np.ndarray, root: np.ndarray, rotations: np.ndar
     knees; the rest are left exactly. A stretch that spikes more smoothed than it did is given back
     its own rotations: averaging the rotations of a fast turn (the fit of a real dancer's pelvis
     turned 230 degrees in three frames) gives no rotation at all, and a foot jumped a metre."""
-    n = len(rotations)
-    if n < 3:
-        return rotations
-    wanted = spike(generated)                                                   # (N, 22)
-    posed = forward_kinematics(root, rotations, offsets)                         # (N, 22, 3)
-    before = (spike(posed) - wanted).max(axis=-1)
+    posed = forward_kinematics(root, rotations, offsets)                         # all people at once
+    if len(rotations) < 3:
+        return rotations, posed
+    wanted = spike(generated)                                                   # (N, H, 22)
+    before = (spike(posed) - wanted).max(axis=-1)                               # (N, H)
+    rotations, posed = rotations.copy(), posed.copy()
+    for h in np.flatnonzero((before > config.tolerance).any(axis=0)):
+        rotations[:, h], posed[:, h] = _steadied(wanted[:, h], before[:, h], posed[:, h], root[:, h],
+                                                 rotations[:, h], offsets[h], config)
+    return rotations, posed
 
-    def excess(r: np.ndarray) -> np.ndarray:   # (N,) how much more each frame spikes than generated
-        changed = np.flatnonzero(np.any(r != rotations, axis=(1, 2, 3)))          # FK only where it changed
+
+def _steadied(wanted: np.ndarray, before: np.ndarray, posed: np.ndarray, root: np.ndarray, rotations: np.ndarray,
+              offsets: np.ndarray, config: LimbConfig) -> tuple[np.ndarray, np.ndarray]:
+    """steady_rotations for one person who pops: the generated joints' spikes wanted (N, 22),
+    the fit's excess over them before (N,), its FK posed (N, 22, 3) -> (rotations, FK)."""
+    n = len(rotations)
+
+    def refit(r: np.ndarray) -> np.ndarray:   # FK (N, 22, 3), recomputed only where r changed
+        changed = np.flatnonzero(np.any(r != rotations, axis=(1, 2, 3)))
         moved = posed.copy()
         moved[changed] = forward_kinematics(root[changed], r[changed], offsets)
-        return (spike(moved) - wanted).max(axis=-1)
+        return moved
+
+    def excess(r: np.ndarray) -> np.ndarray:   # (N,) how much more each frame spikes than generated
+        return (spike(refit(r)) - wanted).max(axis=-1)
 
     smoothed, after = rotations, before
     for _ in range(config.passes):
@@ -147,4 +162,4 @@ def steady_rotations(generated: np.ndarray, root: np.ndarray, rotations: np.ndar
         near = maximum_filter1d(stretches == s, 3)       # smoothing a stretch changes its neighbours' spikes
         if after[near].max() > before[near].max() + config.tolerance:
             smoothed = np.where((stretches == s)[:, None, None, None], rotations, smoothed)
-    return smoothed
+    return smoothed, refit(smoothed)

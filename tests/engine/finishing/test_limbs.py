@@ -109,8 +109,9 @@ def test_a_chest_that_jolts_in_the_skeleton_fit_is_steadied_and_the_rest_kept():
     jolted = rotations.copy()
     chest = JOINT_INDEX["spine3"]
     jolted[40, chest] = jolted[40, chest] @ axis_angle_to_matrix(np.array([0.0, np.radians(30), 0.0]))
-    steadied = steady_rotations(clean, clean[:, 0], jolted, offsets)
-    out = forward_kinematics(clean[:, 0], steadied, offsets)
+    steadied, out = steady_rotations(clean[:, None], clean[:, None, 0], jolted[:, None], offsets[None])   # one person
+    steadied, out = steadied[:, 0], out[:, 0]
+    assert np.allclose(out, forward_kinematics(clean[:, 0], steadied, offsets), atol=1e-12)   # its FK
     around = slice(35, 46)
     assert pop(forward_kinematics(clean[:, 0], jolted, offsets)[around, None]) > 0.1
     assert pop(out[around, None]) <= pop(fitted[around, None]) + 0.02
@@ -126,7 +127,8 @@ def test_a_fast_turning_fit_is_never_smoothed_into_a_jump():
     offsets, root = fit_offsets(joints, iterations=1) * 1.1, joints[:, 0] * (1.0, 1.1, 1.0)
     rotations = inverse_kinematics(joints, offsets)
     plain = pop(forward_kinematics(root, rotations, offsets)[:, None])
-    assert pop(forward_kinematics(root, steady_rotations(joints, root, rotations, offsets), offsets)[:, None]) <= plain
+    _, steadied = steady_rotations(joints[:, None], root[:, None], rotations[:, None], offsets[None])
+    assert pop(steadied) <= plain
 
 
 def test_a_knee_left_popping_by_the_steadying_is_smoothed_once_more():
