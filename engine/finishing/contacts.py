@@ -15,7 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..body import JOINT_RADII
-from ..geometry.rotations import norm, normalize
+from ..geometry.rotations import cross, norm, normalize
 from ..objects import local_to_world, world_to_local
 from ..skeleton import ELBOWS, HANDS, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
@@ -106,7 +106,7 @@ def object_anchors(obj_pose: np.ndarray, storyboard: Storyboard) -> np.ndarray:
 
 def forward_of(joints: np.ndarray) -> np.ndarray:
     """Unit horizontal facing direction from the shoulders: (..., 22, 3) -> (..., 3)."""
-    return normalize(np.cross(joints[..., SHOULDERS[0], :] - joints[..., SHOULDERS[1], :], UP))
+    return normalize(cross(joints[..., SHOULDERS[0], :] - joints[..., SHOULDERS[1], :], UP))
 
 
 def arm_lengths(joints: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from ..body import body_points
-from ..geometry.rotations import axis_angle_to_matrix, norm, normalize
+from ..geometry.rotations import axis_angle_to_matrix, cross, norm, normalize
 from ..objects import world_to_local
 from ..rig import SUBTREE
 from ..skeleton import ANKLES, FEET, HIPS, JOINT_INDEX, KNEES, SHOULDERS
@@ -64,7 +64,7 @@ def _depth(poses: np.ndarray, objects: tuple[np.ndarray, list], partners: np.nda
 def _leaned(poses: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """One person's poses (M, 22, 3) with the upper body pitched forward about the pelvis by
     angle (M,) radians, the hips and legs where they were."""
-    axis = normalize(np.cross(UP, forward_of(poses)))                                  # (M, 3)
+    axis = normalize(cross(UP, forward_of(poses)))                                  # (M, 3)
     turn = axis_angle_to_matrix(axis * angle[:, None])                                  # (M, 3, 3)
     out = poses.copy()
     pivot = poses[:, :1]

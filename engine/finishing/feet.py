@@ -24,7 +24,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import distance_transform_edt, gaussian_filter1d, label, maximum_filter1d
 
-from ..geometry.rotations import norm, normalize
+from ..geometry.rotations import cross, norm, normalize
 from ..skeleton import ANKLES, FEET, HIPS, KNEES
 from ..synth.reach import UP, steady_pole, two_bone_ik
 from ..synth.trajectory import smoothstep
@@ -469,7 +469,7 @@ def reach_with_leg(poses: np.ndarray, side: int, foot_goal: np.ndarray) -> np.nd
     axis = normalize(poses[:, ankle] - poses[:, hip])
     bend = poses[:, knee] - poses[:, hip]
     bend -= np.sum(bend * axis, axis=-1, keepdims=True) * axis
-    facing = normalize(np.cross(poses[:, HIPS[0]] - poses[:, HIPS[1]], UP))
+    facing = normalize(cross(poses[:, HIPS[0]] - poses[:, HIPS[1]], UP))
     pole = steady_pole(bend, facing)
     # A knee never bends backwards: a nearly straight leg's bend is noise, and followed, it bent
     # the knee back for a few frames, then flipped it forward (a 42 cm pop).

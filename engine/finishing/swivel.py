@@ -10,7 +10,7 @@ import numpy as np
 from scipy.ndimage import binary_dilation, gaussian_filter1d
 
 from ..body import JOINT_RADII
-from ..geometry.rotations import normalize
+from ..geometry.rotations import cross, normalize
 from ..objects import ObjectSpec, world_to_local
 from ..skeleton import ANKLES, ELBOWS, HANDS, HIPS, KNEES, SHOULDERS
 
@@ -96,7 +96,7 @@ def _swivelled(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, angle
     if angles.ndim == 2:
         axis, centre, out = axis[:, None], centre[:, None], out[:, None]
     cos, sin = np.cos(angles)[..., None], np.sin(angles)[..., None]
-    return centre + cos * out + sin * np.cross(axis, out)
+    return centre + cos * out + sin * cross(axis, out)
 
 
 def swivel_clear(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, obj_pose: np.ndarray,

@@ -26,7 +26,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from ..camera import StoryboardCamera
 from ..facing import towards_camera
-from ..geometry.rotations import norm
+from ..geometry.rotations import cross, norm
 from ..skeleton import ANKLES, ELBOWS, FEET, HANDS, JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics, inverse_kinematics
 from ..storyboard import Storyboard
 from ..synth.reach import UP, heading_of, yaw_matrix
@@ -242,7 +242,7 @@ def warp_to_keyposes(joints: np.ndarray, offsets: np.ndarray, storyboard: Storyb
                           for k in keys])                                        # (K, 22, 3)
         body = joints[:, h] - joints[:, h, PELVIS:PELVIS + 1]                     # (N, 22, 3) from the pelvis
         hips = joints[:, h, L_HIP] - joints[:, h, R_HIP]
-        heading = gaussian_filter1d(np.unwrap(heading_of(np.cross(hips, UP))), config.heading_smoothing, mode="nearest")
+        heading = gaussian_filter1d(np.unwrap(heading_of(cross(hips, UP))), config.heading_smoothing, mode="nearest")
         turn = yaw_matrix(heading)                                                # (N, 3, 3) body -> world
         moved = posed - posed[:, PELVIS:PELVIS + 1] - body[frames]
         local = moved @ turn[frames]                                             # world -> body frame

@@ -45,7 +45,7 @@ def sixd_to_matrix(d6: np.ndarray) -> np.ndarray:
     a1, a2 = d6[..., :3], d6[..., 3:]
     b1 = normalize(a1)
     b2 = normalize(a2 - np.sum(b1 * a2, axis=-1, keepdims=True) * b1)
-    b3 = np.cross(b1, b2)
+    b3 = cross(b1, b2)
     return np.stack([b1, b2, b3], axis=-1)
 
 

@@ -87,17 +87,20 @@ def continuous_pole(pole: np.ndarray, axis: np.ndarray, carry_m: float = 0.03) -
     # per call (17 calls a frame) made this loop 6% of the finishing.
     previous = normalize(out[0]).tolist()
     rows, axes = out.tolist(), axis.tolist()
+    sqrt = math.sqrt
     for t in range(1, n):
         for c, ((ax, ay, az), o) in enumerate(zip(axes[t], rows[t])):
             px, py, pz = previous[c]
             along = px * ax + py * ay + pz * az
             kx, ky, kz = px - along * ax, py - along * ay, pz - along * az
-            k = carry_m / max(math.sqrt(kx * kx + ky * ky + kz * kz), EPS)
-            o[0] += k * kx
-            o[1] += k * ky
-            o[2] += k * kz
-            length = max(math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]), EPS)
-            previous[c] = (o[0] / length, o[1] / length, o[2] / length)
+            size = sqrt(kx * kx + ky * ky + kz * kz)
+            k = carry_m / (size if size > EPS else EPS)
+            ox, oy, oz = o[0] + k * kx, o[1] + k * ky, o[2] + k * kz
+            o[0], o[1], o[2] = ox, oy, oz
+            length = sqrt(ox * ox + oy * oy + oz * oz)
+            if length < EPS:
+                length = EPS
+            previous[c] = (ox / length, oy / length, oz / length)
     out = np.array(rows)
     return out.reshape(pole.shape)
 
