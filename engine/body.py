@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .geometry.rotations import norm
 from .skeleton import JOINT_INDEX, PARENTS
 
 J = JOINT_INDEX
@@ -37,12 +38,12 @@ def hand_centres(joints: np.ndarray) -> np.ndarray:
     """(..., 22, 3) -> (..., 2, 3) left and right hand centres, a little past the wrists."""
     wrists = joints[..., [J["l_wrist"], J["r_wrist"]], :]
     forearm = wrists - joints[..., [J["l_elbow"], J["r_elbow"]], :]
-    length = np.maximum(np.linalg.norm(forearm, axis=-1, keepdims=True), 1e-6)
+    length = np.maximum(norm(forearm, keepdims=True), 1e-6)
     return wrists + HAND_REACH * forearm / length
 
 
 def head_centre(joints: np.ndarray) -> np.ndarray:
     """(..., 22, 3) -> (..., 3): the skull sits above the head joint, along the neck."""
     neck = joints[..., J["head"], :] - joints[..., J["neck"], :]
-    length = np.maximum(np.linalg.norm(neck, axis=-1, keepdims=True), 1e-6)
+    length = np.maximum(norm(neck, keepdims=True), 1e-6)
     return joints[..., J["head"], :] + 0.06 * neck / length

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry.rotations import quat_to_matrix
+from .geometry.rotations import norm, quat_to_matrix
 
 OBJECT_TYPES = ("box", "table", "canister")
 DEFAULT_SIZES = {"box": (0.45, 0.35, 0.35), "table": (1.2, 0.74, 0.7), "canister": (0.3, 0.5, 0.3)}
@@ -64,7 +64,7 @@ class ObjectSpec:
             return _box_sdf(p - (0, h / 2, 0), (w / 2, h / 2, d / 2))
         if self.type == "canister":
             q = p - (0, h / 2, 0)
-            radial = np.linalg.norm(q[..., [0, 2]], axis=-1) - min(w, d) / 2
+            radial = norm(q[..., [0, 2]]) - min(w, d) / 2
             vertical = np.abs(q[..., 1]) - h / 2
             outside = np.linalg.norm(np.stack([np.maximum(radial, 0), np.maximum(vertical, 0)], -1), axis=-1)
             return outside + np.minimum(np.maximum(radial, vertical), 0)
@@ -79,7 +79,7 @@ class ObjectSpec:
         into the object: max(radii - sdf, 0) -> (...). Only spheres that reach its bounding sphere
         are measured (the rest are 0 either way): the finishing asks this of every candidate
         elbow of every held frame."""
-        from_centre = np.linalg.norm(p - (0, self.size[1] / 2, 0), axis=-1)
+        from_centre = norm(p - (0, self.size[1] / 2, 0))
         radii = np.broadcast_to(radii, from_centre.shape)
         near = from_centre < 0.5 * np.linalg.norm(self.size) + radii
         depth = np.zeros(from_centre.shape)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry.rotations import kabsch, normalize, rotation_between
+from .geometry.rotations import kabsch, norm, normalize, rotation_between
 
 JOINT_NAMES = (
     "pelvis", "l_hip", "r_hip", "spine1", "l_knee", "r_knee", "spine2", "l_ankle", "r_ankle",
@@ -72,7 +72,7 @@ def rest_pose(offsets: np.ndarray = REST_OFFSETS) -> np.ndarray:
 def bone_lengths(joints: np.ndarray) -> np.ndarray:
     """(..., 22, 3) -> (..., 22); the root's entry is 0."""
     par = np.array([max(p, 0) for p in PARENTS])
-    return np.linalg.norm(joints - joints[..., par, :], axis=-1)
+    return norm(joints - joints[..., par, :])
 
 
 def forward_kinematics(root: np.ndarray, local_rot: np.ndarray,

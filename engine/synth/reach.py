@@ -10,7 +10,7 @@ import math
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ..geometry.rotations import EPS, normalize
+from ..geometry.rotations import EPS, norm, normalize
 
 UP = np.array([0.0, 1.0, 0.0])
 
@@ -60,7 +60,7 @@ def two_bone_ik(root: np.ndarray, target: np.ndarray, upper: float, lower: float
     otherwise it is the closest reachable point on the line from root to target.
     """
     to_target = target - root
-    dist = np.linalg.norm(to_target, axis=-1, keepdims=True)
+    dist = norm(to_target, keepdims=True)
     axis = to_target / np.maximum(dist, 1e-9)
     # Keep a hair of bend so the knee/elbow direction stays defined.
     reach = np.clip(dist, abs(upper - lower) + 1e-6, (upper + lower) * (1 - 1e-6))
@@ -116,6 +116,6 @@ def steady_pole(bend: np.ndarray, fallback: np.ndarray, sigma: float = 2.0, fall
     the limb is, with `fallback_m` of the fallback, smoothed over `sigma` frames; a limb bent by
     well over `bent_m` keeps its own bend exactly (so motion that needs no change gets none)."""
     smooth = gaussian_filter1d(bend + fallback_m * normalize(fallback), sigma, axis=0, mode="nearest")
-    straight = np.exp(-0.5 * (np.linalg.norm(bend, axis=-1, keepdims=True) / bent_m) ** 2)
+    straight = np.exp(-0.5 * (norm(bend, keepdims=True) / bent_m) ** 2)
     return bend + straight * (smooth - bend)
 
