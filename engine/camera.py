@@ -7,6 +7,7 @@ horizon, looking at `target`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -19,11 +20,7 @@ class StoryboardCamera:
 
     def basis(self) -> np.ndarray:
         """(3, 3) rows: right, up, towards-camera unit vectors in world coordinates."""
-        el, az = np.deg2rad(self.elevation_deg), np.deg2rad(self.azimuth_deg)
-        right = np.array([np.cos(az), 0.0, -np.sin(az)])
-        up = np.array([-np.sin(el) * np.sin(az), np.cos(el), -np.sin(el) * np.cos(az)])
-        back = np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
-        return np.stack([right, up, back])
+        return _basis(float(self.elevation_deg), float(self.azimuth_deg)).copy()
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """World points (..., 3) -> sketch-plane points (..., 2)."""
@@ -51,3 +48,13 @@ class StoryboardCamera:
     def from_dict(cls, d: dict) -> "StoryboardCamera":
         return cls(float(d["elevation_deg"]), float(d["azimuth_deg"]),
                    tuple(float(x) for x in d["target"]))
+
+
+@lru_cache(maxsize=64)
+def _basis(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
+    """StoryboardCamera.basis, kept per view: the finishing asks for it some thirty times a clip."""
+    el, az = np.deg2rad(elevation_deg), np.deg2rad(azimuth_deg)
+    right = np.array([np.cos(az), 0.0, -np.sin(az)])
+    up = np.array([-np.sin(el) * np.sin(az), np.cos(el), -np.sin(el) * np.cos(az)])
+    back = np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
+    return np.stack([right, up, back])

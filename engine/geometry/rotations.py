@@ -150,6 +150,7 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                     kxz - y, kyz + x, c + k * z * z], axis=-1).reshape(v.shape[:-1] + (3, 3))
     anti = c < -1.0 + 1e-6   # near antiparallel: a half turn about an axis across a
     if np.any(anti):
+        a = np.broadcast_to(a, v.shape)   # a may come unbroadcast (the IK's offsets)
         helper = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
         out[anti] = axis_angle_to_matrix(np.pi * normalize(np.cross(a, helper)))[anti]
     return out

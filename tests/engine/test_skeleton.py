@@ -120,3 +120,16 @@ def test_fit_offsets_fits_each_person_of_a_scene_apart():
     for h in range(2):
         np.testing.assert_allclose(together[h], fit_offsets(joints[:, h]), atol=1e-12)
         np.testing.assert_allclose(together[h], bodies[h], atol=1e-6)
+
+
+def test_ik_of_people_with_their_own_bodies_round_trips_even_through_a_bone_turned_half_round():
+    """(N, H, 22, 3) with offsets (H, 22, 3): the IK walks the offsets unbroadcast; a forearm
+    folded straight back along its rest direction (the antiparallel case of rotation_between)
+    still comes back exactly."""
+    rng = np.random.default_rng(5)
+    bodies = np.stack([REST_OFFSETS * 0.9, REST_OFFSETS * 1.1])                      # (2, 22, 3)
+    rotations = np.broadcast_to(np.eye(3), (5, 2, 22, 3, 3)).copy()   # rest poses: the IK's frames are theirs
+    rotations[2, 1, JOINT_INDEX["l_elbow"]] = rot.axis_angle_to_matrix(np.array([0.0, 0.0, np.pi]))
+    joints = forward_kinematics(rng.normal(size=(5, 2, 3)), rotations, bodies)
+    np.testing.assert_allclose(forward_kinematics(joints[:, :, 0], inverse_kinematics(joints, bodies), bodies),
+                               joints, atol=1e-9)
