@@ -145,7 +145,7 @@ def _walk_ik(joints: np.ndarray, offsets: np.ndarray, root: np.ndarray | None,
     """inverse_kinematics over `levels` (_ik_levels) -> (local (..., 22, 3, 3), global rotations
     (..., 23, 3, 3), the last the root's parent's); joints outside the levels are left identity
     (local) or undefined (global). Walked joint-major (joints on the first axis): a level's
-    gathers and stores are then block copies, and the offsets stay unbroadcast (a third less time)."""
+    gathers and stores are then block copies, and the offsets stay unbroadcast."""
     lead = joints.shape[:-2]
     at = np.ascontiguousarray(np.moveaxis(joints, -2, 0))          # (22, ..., 3)
     bones = _joint_major(offsets, len(lead))                         # (22, ..., 3)

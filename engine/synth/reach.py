@@ -98,8 +98,7 @@ def continuous_pole(pole: np.ndarray, axis: np.ndarray, carry_m: float = 0.03) -
             ox, oy, oz = o[0] + k * kx, o[1] + k * ky, o[2] + k * kz
             o[0], o[1], o[2] = ox, oy, oz
             length = sqrt(ox * ox + oy * oy + oz * oz)
-            if length < EPS:
-                length = EPS
+            length = length if length > EPS else EPS
             previous[c] = (ox / length, oy / length, oz / length)
     out = np.array(rows)
     return out.reshape(pole.shape)
