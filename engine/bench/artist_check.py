@@ -21,7 +21,7 @@ import numpy as np
 from ..artist_sketch import HARSH, ArtistConfig
 from ..finishing import lasting_as_long
 from ..finishing.contacts import ContactConfig
-from ..finishing.held import sketched_rest, true_spans
+from ..finishing.held import drawn_in_hands, sketched_rest, true_spans
 from ..finishing.steady import step_jumps
 from ..generate import generate
 from ..models.bundle import load_default
@@ -36,19 +36,26 @@ DROP = 0.05   # m above its rest at a release: dropped, not put down
 def release_drops(clip, storyboard) -> list[float]:
     """How high (m) above its lowest the first object is at each last frame of a hold that ends
     before the clip does, unless it ends within the finishing's lift_frames (ContactConfig, at the
-    clip's rate) of the end with no resting place sketched after it: held.py carries such a hold on
-    to the end, the hands on the grips (the artist's span a few frames off), as the held-out motion
-    holds it (all three "drops" over 5 cm at cd3455e on scenes 0-49, drawing 0)."""
+    clip's rate) of the end with no resting place sketched after it but where it is held: held.py
+    carries such a hold on to the end, the hands on the grips (the artist's span a few frames off),
+    as the held-out motion holds it (all three "drops" over 5 cm at cd3455e on scenes 0-49,
+    drawing 0)."""
     if clip.obj_pose is None or not storyboard.objects:
         return []
-    height = np.asarray(clip.obj_pose, float)[:, 0, 1]
+    pose = np.asarray(clip.obj_pose, float)
+    height = pose[:, 0, 1]
     carried_on = lasting_as_long(ContactConfig(), clip.fps).lift_frames
     held = np.zeros(len(height), bool)
     for c in storyboard.contacts:
         if c.object == storyboard.objects[0].id:
             held[c.start:c.end + 1] = True
-    return [float(height[end] - height.min()) for _, end in true_spans(held) if end < len(height) - 1
-            and (len(height) - 1 - end >= carried_on or sketched_rest(storyboard, 0, end + 1, len(height) - 1) is not None)]
+    last, spec = len(height) - 1, storyboard.objects[0].spec
+
+    def carried_to_the_end(end: int) -> bool:   # as held.py's _hold_one decides
+        rest = sketched_rest(storyboard, 0, end + 1, last)
+        return last - end < carried_on and (rest is None or drawn_in_hands(rest, pose[end, 0, :3], spec, storyboard.camera))
+
+    return [float(height[end] - height.min()) for _, end in true_spans(held) if end < last and not carried_to_the_end(end)]
 
 
 def largest_jump(joints: np.ndarray) -> float:

@@ -237,6 +237,14 @@ def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | No
     return np.mean(places, axis=0) if places else None
 
 
+def drawn_in_hands(rest: np.ndarray, held: np.ndarray, spec: ObjectSpec, camera: StoryboardCamera) -> bool:
+    """Whether a sketched resting place (3,) of an object is drawn where it is held, at `held`
+    (3,): their centres less than the object's largest size apart in the sketch plane (not a
+    put-down elsewhere, but the artist's span a few frames off)."""
+    centre = np.array([0.0, spec.size[1] / 2, 0.0])
+    return bool(np.linalg.norm(camera.project(rest + centre) - camera.project(held + centre)) < max(spec.size))
+
+
 def _carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma: float) -> np.ndarray:
     """A held object's heading (N,) turning with its holder's chest while one person alone holds it
     (holding (N, H) bool; joints (N, H, 22, 3)), and with the line between the first two holders'
@@ -317,12 +325,9 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     # close to the clip's ends: the artist's spans are a few frames off, not a drop and a pick-up
     # (a box drawn in the hands one frame before its hold, read as resting on the floor 1.1 m
     # away, rose into them in six frames). Not where the sketch puts it down elsewhere.
-    centre = np.array([0.0, spec.size[1] / 2, 0.0])
-
     def in_hands(rest: np.ndarray | None, *frames: int) -> bool:
         """Nothing sketched in a gap, or drawn where the hands hold it at one of its ends."""
-        return rest is None or min(np.linalg.norm(camera.project(rest + centre) - camera.project(fit_pos[f] + centre))
-                                   for f in frames) < max(spec.size)
+        return rest is None or any(drawn_in_hands(rest, fit_pos[f], spec, camera) for f in frames)
 
     stretches, landings = [], []
     for k, ((start, end), landing) in enumerate(zip(spans, rests[1:])):

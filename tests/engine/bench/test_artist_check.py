@@ -48,8 +48,11 @@ def test_a_hold_ending_a_few_frames_before_the_end_is_carried_on_unless_the_sket
     clip, sb = carried(heights)
     sb.contacts = [Contact("A", "left", 5, N - 4, "box", 0)]   # the artist's span 3 frames short of the end
     assert release_drops(clip, sb) == []                        # held.py holds it on to the end
-    corners = np.array([[0.8, 0.0], [1.2, 0.0], [1.2, 0.4], [0.8, 0.4]])
-    sb.object_keys = [ObjectKey("box", N - 1, corners)]        # drawn resting on the floor at the end
+    box = sb.objects[0].spec.size
+    around = sb.camera.project(np.array([[x, y, 0.0] for x in (-box[0] / 2, box[0] / 2) for y in (0.5, 0.5 + box[1])]))
+    sb.object_keys = [ObjectKey("box", N - 1, around)]         # drawn where the hands hold it at the end
+    assert release_drops(clip, sb) == []
+    sb.object_keys = [ObjectKey("box", N - 1, around + [1.0, -0.5])]   # drawn set down on the floor away
     np.testing.assert_allclose(release_drops(clip, sb), [0.5])
 
 
