@@ -83,6 +83,7 @@ class Document(QObject):
         self.variation = 0
         self.phase: np.ndarray | None = None   # (N, 3) occupancy of the last finished generation
         self._result_source: str | None = None  # the storyboard the clips came from, as JSON
+        self.result_is_preview = False         # the clips shown are a drag's quick preview, no take
         self.takes: list[Take] = []            # every generation kept (engine.takes), newest last
         self.take_index = -1                   # the take shown (-1: none, or a preview or recovery)
         self.reference: MotionClip | None = None
@@ -98,6 +99,7 @@ class Document(QObject):
         self.frame = 0
         self.span = None
         self.clips, self.variation, self.phase, self._result_source = [], 0, None, None
+        self.result_is_preview = False
         self.takes, self.take_index = [], -1
         self._unsaved_without_edits = dirty
         self.tool_options = replace(self.tool_options, pinned=())   # pins are the old document's
@@ -186,10 +188,10 @@ class Document(QObject):
 
     # ---- generation results ------------------------------------------------------------------
     def set_result(self, clips: list[MotionClip], phase: np.ndarray | None,
-                   source: Storyboard | None = None) -> None:
-        """Motion that is no take (a preview, a recovered clip); source: the storyboard the clips
-        were generated from (None: the current one)."""
-        self.take_index = -1
+                   source: Storyboard | None = None, preview: bool = False) -> None:
+        """Motion that is no take (a drag's preview, a recovered clip); source: the storyboard the
+        clips were generated from (None: the current one)."""
+        self.take_index, self.result_is_preview = -1, preview
         self.clips, self.variation = list(clips), 0
         self.phase = phase if phase is not None else (clips[0].phase if clips else None)
         self._result_source = (source or self.storyboard).to_json() if clips else None
@@ -224,7 +226,7 @@ class Document(QObject):
             self.clips, self.variation = list(take.clips), take.chosen
             self.phase = take.clip.phase
             self._result_source = take.source
-            self.take_index = index
+            self.take_index, self.result_is_preview = index, False
             if restore_settings:
                 self.set_settings(settings_of(take.settings, self.settings))
             self.resultChanged.emit()

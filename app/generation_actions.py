@@ -14,6 +14,8 @@ from engine.sampling.events import GenerationResult, StepEvent
 from .generation import GenerationSettings
 
 THREADS_KEY = "generation/threads"   # 0 or absent: automatic
+OUTDATED_NOTICE = "The sketch has changed since this motion: Ctrl+Enter generates it again."
+PREVIEW_NOTICE = "A quick preview: a drag's release, or Ctrl+Enter, generates the sketch in full."
 
 
 class GenerationActions:
@@ -103,6 +105,19 @@ class GenerationActions:
         frames, length = (result.clips[0].num_frames if result.clips else 0), self.doc.storyboard.length
         if result.clips and frames != length:   # the clip's length changed while it was generated
             note = f" It was made for {frames} frames; the clip has {length} now: Ctrl+Enter generates it again." + note
-        self.statusBar().showMessage(
-            f"Generated {count} variation{'s' * (count != 1)} in {result.wall_time_s:.1f} s "
-            f"(first step after {result.first_step_s:.2f} s).{note}", 15000)
+        self._summary = (f"Generated {count} variation{'s' * (count != 1)} in {result.wall_time_s:.1f} s "
+                         f"(first step after {result.first_step_s:.2f} s).{note}")
+        self.statusBar().showMessage(self._summary, 15000)
+
+    def _drop_stale_summary(self) -> None:
+        """An edit outdates the last generation's summary: its misses were the sketch's before the
+        edit (an undone contact's hand went on being reported)."""
+        if self.statusBar().currentMessage() == getattr(self, "_summary", None):
+            self.statusBar().clearMessage()
+        self.statusBar().setToolTip("")
+
+    def _update_notice(self) -> None:
+        """The 3D view's notice: a drag's preview says so (mid-drag it is of a sketch the document
+        does not have yet: not outdated, but ahead); other motion says when the sketch changed."""
+        self.viewport.set_notice(PREVIEW_NOTICE if self.doc.result_is_preview
+                                 else OUTDATED_NOTICE if self.session.outdated else "")

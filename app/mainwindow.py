@@ -48,7 +48,6 @@ TOOL_TIPS = {"select": "Select and move joints and objects",
              "object": "Drag a rectangle (or draw a lasso) for the object at the playhead",
              "contact": "Click a hand, then an object anchor or another hand",
              "erase": "Click a joint, path, contact or object to remove it"}
-OUTDATED_NOTICE = "The sketch has changed since this motion: Ctrl+Enter generates it again."
 
 
 class VerticalScroll(QScrollArea):
@@ -357,7 +356,8 @@ class MainWindow(FileActions, PoseActions, GenerationActions, QMainWindow):
         for stopped in (session.failed, session.cancelled):
             stopped.connect(lambda *_: self.viewport.set_preview(self.doc.clip))
             stopped.connect(lambda *_: self.phase_strip.show_document_phase())
-        session.outdatedChanged.connect(lambda outdated: self.viewport.set_notice(OUTDATED_NOTICE if outdated else ""))
+        session.outdatedChanged.connect(self._update_notice)
+        doc.resultChanged.connect(self._update_notice)
         session.runningChanged.connect(self._on_running)
         session.finished.connect(self._on_generated)
         session.failed.connect(self._on_failed)
@@ -381,6 +381,7 @@ class MainWindow(FileActions, PoseActions, GenerationActions, QMainWindow):
             action.setChecked(rate == speed)   # none checked for a rate the menu does not offer
 
     def _on_storyboard(self) -> None:
+        self._drop_stale_summary()
         self.viewport.set_storyboard(self.doc.storyboard)
         self._on_frame(self.doc.frame)
 

@@ -174,7 +174,8 @@ class GenerationSession(QObject):
         if self.settings.preview:
             self._preview_s = time.monotonic() - self._started_at
         if self.settings.preview or not clips:
-            self._doc.set_result(clips, clips[0].phase if clips else None, source=self.storyboard)
+            self._doc.set_result(clips, clips[0].phase if clips else None, source=self.storyboard,
+                                 preview=self.settings.preview)
         else:
             kept = {k: v for k, v in asdict(self.settings).items() if k not in MACHINE_SETTINGS}
             self._doc.add_take(Take(clips, self.settings.seed, kept, self.storyboard.to_json()))

@@ -265,7 +265,10 @@ class Storyboard:
             if Path(path).stat().st_size > 4 * MAX_FILE_CHARS:   # UTF-8: at most 4 bytes a character
                 raise StoryboardError(f"cannot read {path}: larger than a storyboard can be")
             text = Path(path).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as e:
+        except UnicodeDecodeError as e:   # a binary file: the codec's byte offsets say nothing to a person
+            raise StoryboardError(f"cannot read {path}: not a storyboard (not UTF-8 text: byte {e.start} "
+                                  f"is 0x{e.object[e.start]:02x})") from None
+        except OSError as e:
             raise StoryboardError(f"cannot read {path}: {e}") from None
         return cls.from_json(text)
 

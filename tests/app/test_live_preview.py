@@ -6,6 +6,7 @@ import pytest
 from PySide6.QtCore import QEventLoop, QPoint, Qt, QTimer
 
 from app import commands as cmd
+from app.generation_actions import PREVIEW_NOTICE
 from engine.skeleton import JOINT_INDEX
 
 from .fakes import FakeSampler, sample_storyboard
@@ -58,6 +59,7 @@ def test_dragging_a_joint_previews_it_and_the_release_generates(qtbot, make_wind
     qtbot.waitUntil(lambda: not window.session.running, timeout=5000)
     assert window.doc.clip is not None
     assert np.allclose(cmd.find_keypose(window.doc.storyboard, "A", 60).points[WRIST], before)   # not yet an edit
+    assert window.viewport.notice == PREVIEW_NOTICE          # the drag's preview: ahead of the sketch, not behind it
     canvas = window.canvas
     qtbot.mouseRelease(canvas, Qt.LeftButton, pos=px(canvas, resting))
     qtbot.waitUntil(lambda: not sampler.asked[-1][0].preview and not window.session.running, timeout=5000)
@@ -65,7 +67,7 @@ def test_dragging_a_joint_previews_it_and_the_release_generates(qtbot, make_wind
     assert np.linalg.norm(posed - before) > 0.1                        # the release made the edit ...
     assert np.allclose(previews[-1], posed)                            # ... the newest preview showed it
     assert np.allclose(sampler.asked[-1][1], posed)                    # and the full run has it
-    assert not window.session.outdated
+    assert not window.session.outdated and window.viewport.notice == ""   # the full take is no preview
 
 
 def rest(ms: int) -> None:

@@ -162,6 +162,8 @@ def test_a_hold_finishing_could_not_reach_is_told_after_generating(qtbot, make_w
     message = window.statusBar().currentMessage()
     assert message.startswith("Generated 1 variation") and f"{note} (and 1 more: point here for all)." in message
     assert window.statusBar().toolTip().split("\n")[0] == note   # every note, for the pointer
+    window.doc.undo_stack.push(cmd.SetTiming(window.doc, 24.0))  # an edit: the misses were the old sketch's
+    assert window.statusBar().currentMessage() == "" and window.statusBar().toolTip() == ""
 
 
 def test_sampler_error_becomes_a_dialog(qtbot, make_window, dialogs):
@@ -352,7 +354,7 @@ def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window, dialogs):
 
 
 def test_the_view_says_when_the_sketch_changed_since_its_motion(qtbot, make_window):
-    from app.mainwindow import OUTDATED_NOTICE
+    from app.generation_actions import OUTDATED_NOTICE
     window = make_window(generate=FakeSampler(delay_s=0.01))
     load_sample(window)
     doc, view = window.doc, window.viewport

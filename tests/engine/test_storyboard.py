@@ -161,6 +161,14 @@ def test_nan_and_infinity_are_rejected():
         Storyboard.from_dict(broken("camera.target", [0, float("inf"), 0]))
 
 
+def test_a_binary_file_is_named_not_a_storyboard_not_by_its_codec(tmp_path):
+    path = tmp_path / "photo.json"
+    path.write_bytes(b'{"format": "sketch2colab-storyboard"' + bytes(range(128, 256)))
+    with pytest.raises(StoryboardError, match=r"not a storyboard \(not UTF-8 text: byte 36 is 0x80\)") as e:
+        Storyboard.load(path)
+    assert "codec" not in str(e.value)
+
+
 def test_validate_command_exit_codes(tmp_path):
     good, bad, junk = tmp_path / "good.json", tmp_path / "bad.json", tmp_path / "junk.json"
     good.write_text(json.dumps(GOOD))
