@@ -12,7 +12,7 @@ import numpy as np
 from PySide6.QtGui import QUndoCommand
 
 from engine.grips import with_grips_fitted
-from engine.objects import ObjectSpec, drawn_size
+from engine.objects import ObjectSpec, drawn_size, resized_outline
 from engine.skeleton import FEET, MIRROR
 from engine.storyboard import SPANS, Contact, Keypose, ObjectKey, SceneObject, Storyboard
 
@@ -254,15 +254,19 @@ class DeleteObjectKey(StoryboardCommand):
 
 
 class SetObjectSpec(StoryboardCommand):
-    """Change an object's type and size (metres, w x h x d); its anchors follow the new shape."""
-    touches = ("objects",)
+    """Change an object's type and size (metres, w x h x d); its anchors follow the new shape, and
+    its drawings the new size (engine.objects.resized_outline)."""
+    touches = ("objects", "object_keys")
 
     def __init__(self, document, object_id: str, kind: str, size: tuple[float, float, float]):
         super().__init__(document, "Change object")
         self._object, self._kind, self._size = object_id, kind, tuple(size)
 
     def apply(self, sb):
-        sb.objects[sb.object_index(self._object)].spec = ObjectSpec(self._kind, self._size)
+        obj = sb.objects[sb.object_index(self._object)]
+        for key in (k for k in sb.object_keys if k.object == self._object):
+            key.outline = resized_outline(key.outline, obj.spec.size, self._size, sb.camera)
+        obj.spec = ObjectSpec(self._kind, self._size)
 
 
 # ---- timing --------------------------------------------------------------------------------------

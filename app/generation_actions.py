@@ -15,7 +15,7 @@ from .generation import GenerationSettings
 
 THREADS_KEY = "generation/threads"   # 0 or absent: automatic
 OUTDATED_NOTICE = "The sketch has changed since this motion: Ctrl+Enter generates it again."
-PREVIEW_NOTICE = "A quick preview: a drag's release, or Ctrl+Enter, generates the sketch in full."
+PREVIEW_NOTICE = "A quick preview: on release (or Ctrl+Enter) it is generated in full."
 
 
 class GenerationActions:

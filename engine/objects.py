@@ -108,12 +108,28 @@ def drawn_size(kind: str, outline: np.ndarray, camera) -> tuple[float, float, fl
     StoryboardCamera): the type's default size scaled so that its upright silhouette (facing +Z)
     is as wide and as tall as the drawing, width and depth together, each within SIZE_RANGE."""
     w, h, d = DEFAULT_SIZES[kind]
-    corners = np.array([[sx * w / 2, y, sz * d / 2] for sx in (-1, 1) for y in (0.0, h) for sz in (-1, 1)])
-    seen = np.ptp(camera.project(corners), axis=0)                            # (2,) default's silhouette
-    scale = np.ptp(np.asarray(outline, float), axis=0) / np.maximum(seen, 1e-9)   # (2,) across, up
+    scale = np.ptp(np.asarray(outline, float), axis=0) / np.maximum(_seen(DEFAULT_SIZES[kind], camera), 1e-9)   # across, up
     across = float(np.clip(scale[0], SIZE_RANGE[0] / min(w, d), SIZE_RANGE[1] / max(w, d)))
     up = float(np.clip(scale[1], SIZE_RANGE[0] / h, SIZE_RANGE[1] / h))
     return (w * across, h * up, d * across)
+
+
+def resized_outline(outline: np.ndarray, old: tuple[float, float, float], new: tuple[float, float, float],
+                    camera) -> np.ndarray:
+    """An outline (L, 2) drawn for an object of size `old` (w, h, d) redrawn for size `new`: scaled
+    across and up as its upright silhouette (facing +Z, as drawn_size reads it) grows, about the
+    middle of its bottom edge (what rests on the floor stays on it). Typed sizes left a box's
+    drawing as it was, its grips shown off it."""
+    outline = np.asarray(outline, float)
+    bottom = np.array([(outline[:, 0].min() + outline[:, 0].max()) / 2, outline[:, 1].min()])
+    return bottom + (outline - bottom) * _seen(new, camera) / np.maximum(_seen(old, camera), 1e-9)
+
+
+def _seen(size: tuple[float, float, float], camera) -> np.ndarray:
+    """How wide and tall (2,) an upright box of `size` (w, h, d) facing +Z looks through `camera`."""
+    w, h, d = size
+    corners = np.array([[sx * w / 2, y, sz * d / 2] for sx in (-1, 1) for y in (0.0, h) for sz in (-1, 1)])
+    return np.ptp(camera.project(corners), axis=0)
 
 
 def default_anchors(kind: str, size: tuple[float, float, float]) -> np.ndarray:

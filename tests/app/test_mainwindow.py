@@ -326,6 +326,27 @@ def test_decimals_typed_into_the_generation_settings_stay(qtbot, window):
     assert window.doc.settings.cfg == pytest.approx(0.75) and window.doc.settings.text_cfg == pytest.approx(4.5)
 
 
+def test_a_typed_object_size_redraws_the_object_at_that_size(qtbot, window):
+    """Width typed into Properties: the box's drawing grows with it (its grips were shown off
+    the old drawing), standing where it stood; one undo puts both back."""
+    load_sample(window)
+    doc, panel = window.doc, window.properties
+    doc.select(object="box1")
+    before = doc.storyboard.to_json()
+    drawn = next(k.outline for k in doc.storyboard.object_keys if k.object == "box1").copy()
+    old = doc.storyboard.objects[0].spec.size
+    panel.size[0].selectAll()
+    qtbot.keyClicks(panel.size[0], f"{2 * old[0]:.2f}")
+    qtbot.keyClick(panel.size[0], Qt.Key_Return)
+    sb = doc.storyboard
+    assert sb.objects[0].spec.size[0] == pytest.approx(2 * old[0], abs=0.005)
+    now = next(k.outline for k in sb.object_keys if k.object == "box1")
+    assert np.ptp(now[:, 0]) > 1.3 * np.ptp(drawn[:, 0]) and now[:, 1].min() == pytest.approx(drawn[:, 1].min())
+    window.canvas.grab()
+    doc.undo_stack.undo()
+    assert doc.storyboard.to_json() == before
+
+
 def test_clip_length_and_frame_rate_are_undoable_edits(qtbot, window, dialogs):
     """Typing a frame rate keeps every key at its time; a shorter length drops what lies past it,
     once the artist has said yes to the question that says what goes."""
