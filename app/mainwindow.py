@@ -20,7 +20,7 @@ from engine.storyboard import Storyboard
 from . import commands as cmd
 from .autosave import Autosaver
 from .canvas import SketchCanvas
-from .document import TOOLS, Document
+from .document import OBJECT_PATH, TOOLS, Document
 from .examples import list_examples
 from .files import APP_NAME, FileActions
 from .generation_actions import GenerationActions
@@ -335,6 +335,7 @@ class MainWindow(FileActions, PoseActions, GenerationActions, QMainWindow):
         doc.dirtyChanged.connect(lambda _: self._update_title())
         doc.pathChanged.connect(self._update_title)
         doc.toolChanged.connect(lambda tool: self.tool_actions[tool].setChecked(True))
+        doc.toolChanged.connect(self._say_what_a_path_is_for)
         doc.frameChanged.connect(self._on_frame)
         doc.storyboardChanged.connect(self._on_storyboard)
         doc.resultChanged.connect(self._show_result)
@@ -395,6 +396,14 @@ class MainWindow(FileActions, PoseActions, GenerationActions, QMainWindow):
         self.viewport.set_scene_options(options.scene(self.viewport.options))
         for name, action in self.view_actions.items():
             action.setChecked(getattr(options, name))
+
+    def _say_what_a_path_is_for(self, tool: str) -> None:
+        """The Trajectory tool draws for the selected joint, which the last dragged one becomes:
+        said when the tool is picked (a wrist's path drawn for a pelvis's went unnoticed)."""
+        sel = self.doc.selection
+        if tool == "trajectory" and sel.agent is not None:
+            whose = "the object's" if sel.joint == OBJECT_PATH else f"{sel.agent}'s {sel.joint}"
+            self.statusBar().showMessage(f"Trajectory: draws {whose} path (Properties > Joint picks another).", 8000)
 
     def _keep_selected_figure_in_view(self) -> None:
         key = cmd.find_keypose(self.doc.storyboard, self.doc.selection.agent, self.doc.frame)

@@ -326,6 +326,14 @@ def test_decimals_typed_into_the_generation_settings_stay(qtbot, window):
     assert window.doc.settings.cfg == pytest.approx(0.75) and window.doc.settings.text_cfg == pytest.approx(4.5)
 
 
+def test_picking_the_trajectory_tool_says_whose_path_it_draws(qtbot, window):
+    load_sample(window)
+    window.doc.select(agent="A", joint="l_wrist")          # as the last dragged joint leaves it
+    qtbot.keyClick(window, Qt.Key_T)
+    assert window.doc.tool == "trajectory"
+    assert window.statusBar().currentMessage().startswith("Trajectory: draws A's l_wrist path")
+
+
 def test_a_typed_object_size_redraws_the_object_at_that_size(qtbot, window):
     """Width typed into Properties: the box's drawing grows with it (its grips were shown off
     the old drawing), standing where it stood; one undo puts both back."""
