@@ -108,7 +108,7 @@ def drawn_size(kind: str, outline: np.ndarray, camera) -> tuple[float, float, fl
     StoryboardCamera): the type's default size scaled so that its upright silhouette (facing +Z)
     is as wide and as tall as the drawing, width and depth together, each within SIZE_RANGE."""
     w, h, d = DEFAULT_SIZES[kind]
-    scale = np.ptp(np.asarray(outline, float), axis=0) / np.maximum(_seen(DEFAULT_SIZES[kind], camera), 1e-9)   # across, up
+    scale = np.ptp(np.asarray(outline, float), axis=0) / np.maximum(_seen((w, h, d), camera), 1e-9)   # across, up
     across = float(np.clip(scale[0], SIZE_RANGE[0] / min(w, d), SIZE_RANGE[1] / max(w, d)))
     up = float(np.clip(scale[1], SIZE_RANGE[0] / h, SIZE_RANGE[1] / h))
     return (w * across, h * up, d * across)
