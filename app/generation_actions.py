@@ -95,7 +95,7 @@ class GenerationActions:
 
     def _on_generated(self, result: GenerationResult) -> None:
         count = len(result.clips)
-        if self.session.settings.preview:
+        if self.doc.result_is_preview:
             self.statusBar().showMessage(f"Preview in {result.wall_time_s * 1000:.0f} ms; "
                                          "the full generation follows the release.", 4000)
             return

@@ -88,7 +88,7 @@ def test_previews_finish_while_the_pointer_keeps_moving(qtbot, make_window, ever
     window.doc.set_frame(60)
     window.doc.set_tool("select")
     shown = []
-    window.session.finished.connect(lambda result: shown.append(window.session.settings.preview))
+    window.session.finished.connect(lambda result: shown.append(window.doc.result_is_preview))
     canvas = window.canvas
     start = cmd.find_keypose(window.doc.storyboard, "A", 60).points[WRIST].copy()
     qtbot.mousePress(canvas, Qt.LeftButton, pos=px(canvas, start))

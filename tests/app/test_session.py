@@ -1,6 +1,7 @@
 """The generation session as a model: it starts from a copy of the storyboard, refuses what it
 cannot run in one line, streams steps, hands the result to the document, and says when edits
 have made that result outdated."""
+import copy
 from dataclasses import replace
 
 from app import commands as cmd
@@ -30,6 +31,25 @@ def test_a_generation_streams_and_its_result_goes_to_the_document(qtbot):
     assert [e.step for e in steps] == sorted({e.step for e in steps}) and steps[-1].step == 3
     assert running == [True, False]
     assert doc.clip is not None and session.latest is None and not session.outdated
+
+
+def test_a_preview_hands_over_no_steps_and_the_request_behind_it_starts_before_it_is_shown(qtbot):
+    """A drag's preview is done in a tenth of a second: its steps are neither decoded nor drawn
+    (they took the cores from it), and the newer request waiting for it is running by the time
+    the views draw its result."""
+    doc, session = make_session()
+    steps, running_when_shown = [], []
+    session.stepped.connect(steps.append)
+    doc.resultChanged.connect(lambda: running_when_shown.append((doc.result_is_preview, session.running)))
+    moved = copy.deepcopy(doc.storyboard)
+    moved.keyposes[0].points[0] += 0.1
+    with qtbot.waitSignal(session.finished, timeout=10_000):
+        session.preview(doc.storyboard, GenerationSettings(steps=3))
+        session.preview(moved, GenerationSettings(steps=3))    # waits for the first
+    assert steps == [] and running_when_shown == [(True, True)]
+    qtbot.waitUntil(lambda: not session.running, timeout=10_000)
+    assert steps == [] and running_when_shown[-1] == (True, False)
+    assert session.storyboard.to_json() == moved.to_json() and doc.clip is not None
 
 
 def test_edits_during_a_run_do_not_reach_it_and_make_its_result_outdated(qtbot):
