@@ -1,5 +1,7 @@
 """Starting points for new keyposes: the standing template (engine.poses), a copy of the
-previous keyframe, a pose of the library or a copied pose placed where the figure stands; which
+previous keyframe, a pose of the library or a copied pose placed where the figure stands (carried
+along the person's pelvis stroke from the key before: stamped at a stroke's end frame, a pose
+stood back at the previous key and left the stroke's end behind); which
 way a keypose faces. A library pose that reaches for something is stamped reaching it: the grips
 of an object lying on the floor, a partner's hands, the grips at the carrier's end of an object
 carried with others (the stamp knows the object's grips and the people's depths in 3D, which the
@@ -11,6 +13,7 @@ import numpy as np
 from engine.facing import depth_of, facing, lift
 from engine.finishing.warp import LEVEL
 from engine.finishing.held import sketched_rest
+from engine.geometry.polylines import resample_polyline
 from engine.poses import REACHES_FOR, hands_placed, library_pose, library_pose_2d, reach_of, standing_pose_2d
 from engine.skeleton import FEET, HANDS, JOINT_INDEX, NUM_JOINTS
 from engine.storyboard import Keypose, Storyboard
@@ -29,14 +32,36 @@ def key_at_or_before(sb: Storyboard, agent: str, frame: int) -> Keypose | None:
 
 
 def new_keypose(sb: Storyboard, agent: str, frame: int) -> tuple[np.ndarray, np.ndarray]:
-    """(points (22, 2), mask (22,)) for a keypose added at `frame`: the previous keyframe's pose,
-    or a standing figure placed apart from the other agents."""
+    """(points (22, 2), mask (22,)) for a keypose added at `frame`: the previous keyframe's pose
+    where the agent's pelvis stroke takes it by then, or a standing figure placed apart from the
+    other agents (its pelvis on the stroke where one spans the frame)."""
     previous = previous_keypose(sb, agent, frame)
     if previous is not None:
-        return previous.points.copy(), previous.mask.copy()
+        return previous.points + carried_along(sb, agent, previous, frame), previous.mask.copy()
     offset = 0.8 * (sb.agent_index(agent) - (len(sb.agents) - 1) / 2)
     points = standing_pose_2d(sb.camera) + (offset, 0.0)
+    pelvis = _pelvis_stroke_at(sb, agent, frame)
+    if pelvis is not None:
+        points += pelvis[frame] - points[0]
     return points, np.ones(len(points), bool)
+
+
+def carried_along(sb: Storyboard, agent: str, since: Keypose | None, frame: int) -> np.ndarray:
+    """How far (2,) on the sketch the agent's pelvis stroke takes them from key `since` to `frame`
+    (from the stroke's start, where the key comes before it); zero where no stroke spans `frame`."""
+    pelvis = _pelvis_stroke_at(sb, agent, frame)
+    if since is None or pelvis is None:
+        return np.zeros(2)
+    return pelvis[frame] - pelvis[max(since.frame, min(pelvis))]
+
+
+def _pelvis_stroke_at(sb: Storyboard, agent: str, frame: int) -> dict[int, np.ndarray] | None:
+    """{frame: sketch point (2,)} over the frames of the agent's pelvis stroke that spans `frame`,
+    read as the model reads a stroke (evenly along it: engine.controls), or None."""
+    for tr in sb.trajectories:
+        if tr.agent == agent and tr.joint == "pelvis" and tr.start <= frame <= tr.end:
+            return dict(zip(range(tr.start, tr.end + 1), resample_polyline(tr.points, tr.end - tr.start + 1)))
+    return None
 
 
 def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -256,14 +281,16 @@ def _previous_facing(sb: Storyboard, agent: str, frame: int) -> float:
 def placed_pose(sb: Storyboard, agent: str, frame: int, points: np.ndarray, mask: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
     """A pose (points (22, 2), mask (22,)) moved to where the agent stands at `frame`: its feet on
-    the feet of the agent's keypose there (or the one before), else its pelvis on that pelvis,
-    else where a new keypose would go. A pose with neither feet nor pelvis is left where it is."""
+    the feet of the agent's keypose there (or the one before, carried along the pelvis stroke),
+    else its pelvis on that pelvis, else where a new keypose would go. A pose with neither feet
+    nor pelvis is left where it is."""
     here = key_at_or_before(sb, agent, frame)
+    walked = carried_along(sb, agent, here, frame)
     feet = list(FEET)
     if here is not None and here.mask[feet].all() and mask[feet].all():
-        shift = here.points[feet].mean(0) - points[feet].mean(0)
+        shift = here.points[feet].mean(0) + walked - points[feet].mean(0)
     elif mask[0]:
-        target = here.points[0] if here is not None and here.mask[0] else new_keypose(sb, agent, frame)[0][0]
+        target = here.points[0] + walked if here is not None and here.mask[0] else new_keypose(sb, agent, frame)[0][0]
         shift = target - points[0]
     else:
         shift = np.zeros(2)

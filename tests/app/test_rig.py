@@ -540,3 +540,33 @@ def test_a_pick_up_stamp_with_nothing_to_pick_up_is_the_librarys_pose(case):
     assert np.isfinite(points).all() and np.isfinite(depth).all() and mask.all()
     lying = stamped_pose(_box_scene(), "A", 40, "crouch-reach")[0]
     assert not np.allclose(points[[J["l_wrist"], J["r_wrist"]]], lying[[J["l_wrist"], J["r_wrist"]]], atol=0.02)
+
+
+def test_a_pose_stamped_on_a_pelvis_stroke_stands_where_the_stroke_has_the_person(qtbot, make_window):
+    """A pelvis stroke says where the person is at each of its frames: a pose stamped at its last
+    frame stood back at the key before and left the stroke's end behind; so did a key added."""
+    from app.poses import new_keypose
+    from engine.geometry.polylines import resample_polyline
+    from engine.skeleton import FEET
+    window = make_window()
+    doc, canvas = window.doc, window.canvas
+    last = doc.storyboard.length - 1
+    doc.set_frame(0)
+    doc.select(agent="A")
+    doc.set_tool("keypose")
+    qtbot.mouseClick(canvas, Qt.LeftButton, pos=px(canvas, (-1.2, 0.0)))
+    first = cmd.find_keypose(doc.storyboard, "A", 0).points.copy()
+    doc.select(agent="A", joint="pelvis")
+    doc.set_tool("trajectory")
+    drag(qtbot, canvas, first[J["pelvis"]], first[J["pelvis"]] + (2.0, 0.3))
+    stroke = doc.storyboard.trajectories[0]
+    assert (stroke.joint, stroke.start, stroke.end) == ("pelvis", 0, last)
+    along = resample_polyline(stroke.points, last + 1) - stroke.points[0]      # as the model reads it
+    for frame in (last, last // 2):
+        doc.set_frame(frame)
+        window.stamp_pose("stand")
+        feet = cmd.find_keypose(doc.storyboard, "A", frame).points[list(FEET)].mean(0)
+        assert np.linalg.norm(feet - (first[list(FEET)].mean(0) + along[frame])) < 0.02
+    added, _ = new_keypose(doc.storyboard, "A", last - 10)     # a key added after one: carried on too
+    key = cmd.find_keypose(doc.storyboard, "A", last // 2)
+    assert np.allclose(added, key.points + along[last - 10] - along[last // 2])

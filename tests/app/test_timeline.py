@@ -69,11 +69,16 @@ def test_a_marker_stops_at_its_neighbours_and_replaces_none(qtbot, timeline, doc
     assert sorted(k.frame for k in doc.storyboard.keyposes if k.agent == "B") == [0, 26, 119]   # not inside the hold
 
 
-def test_double_click_adds_a_copy_of_the_previous_keypose(qtbot, timeline, doc):
+def test_double_click_adds_the_previous_keypose_where_the_pelvis_stroke_takes_it(qtbot, timeline, doc):
+    from engine.geometry.polylines import resample_polyline
     qtbot.mouseDClick(timeline, Qt.LeftButton, pos=at(timeline, 30, row=0))
     added = cmd.find_keypose(doc.storyboard, "A", 30)
     assert added is not None
-    assert added.points == pytest.approx(cmd.find_keypose(doc.storyboard, "A", 0).points)
+    stroke = next(t for t in doc.storyboard.trajectories if t.agent == "A" and t.joint == "pelvis")
+    along = resample_polyline(stroke.points, stroke.end - stroke.start + 1)
+    walked = along[30 - stroke.start] - along[0]
+    assert np.linalg.norm(walked) > 0.2
+    assert added.points == pytest.approx(cmd.find_keypose(doc.storyboard, "A", 0).points + walked)
 
 
 def test_phase_strip_shows_stacked_occupancy_and_scrubs(qtbot, doc):
