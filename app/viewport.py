@@ -16,7 +16,8 @@ the playback model (app.playback.Playback) answers.
 
 Public API (everything else is private):
     Viewport(parent=None, config: RenderConfig | None = None)
-    set_clip(clip: MotionClip | None)      show a motion; frames the camera on it; frame 0
+    set_clip(clip: MotionClip | None)      show a motion from frame 0; frames the camera on it
+                                           where it was empty or the motion leaves the view
     set_preview(clip: MotionClip)          slot for streamed previews: same, but keeps the frame
                                            and the camera
     warm_up()                              build the renderer now; its shaders compile over the
@@ -114,9 +115,16 @@ class Viewport(QWidget):
         return 0 if self._clip is None else self._clip.num_frames
 
     def set_clip(self, clip: MotionClip | None) -> None:
+        """A new clip, from its first frame. The camera frames it where no motion was shown
+        before or this one leaves the view, and else stays where it is: framed anew, the view
+        moved with every live preview of a drag (and lost the artist's pan and zoom)."""
+        shown = self._clip is not None
         self._clip = clip
         self._playhead = 0
-        self.frame_all()
+        if shown and clip is not None and self.camera.sees(self._whole_scene_points(), self._aspect()):
+            self.update_view()
+        else:
+            self.frame_all()
 
     @Slot(object)
     def set_preview(self, clip: MotionClip) -> None:
@@ -154,11 +162,18 @@ class Viewport(QWidget):
             self.update_view()
 
     def frame_all(self) -> None:
+        self.camera.frame_all(self._whole_scene_points(), self._aspect())
+        self.update_view()
+
+    def _whole_scene_points(self) -> np.ndarray:
+        """World points (M, 3) of the scene over the whole motion, not one frame."""
         scene = scene_from_clip(self._clip, self.frame, self._storyboard, self.options)
         if self._clip is not None:
-            scene.people = self._clip.joints.reshape(-1, 22, 3)  # the whole motion, not one frame
-        self.camera.frame_all(scene.points(), self.width() / max(1, self.height()))
-        self.update_view()
+            scene.people = self._clip.joints.reshape(-1, 22, 3)
+        return scene.points()
+
+    def _aspect(self) -> float:
+        return self.width() / max(1, self.height())
 
     def update_view(self) -> None:
         """Mark the picture stale; it is re-rendered on the next turn of the event loop."""

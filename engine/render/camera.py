@@ -73,9 +73,21 @@ class OrbitCamera:
         sphere would leave half the picture empty."""
         pts = np.asarray(points, float).reshape(-1, 3)
         centre = (pts.min(0) + pts.max(0)) / 2
-        right, up, back = ((pts - centre) @ self.basis().T).T
+        need = self._distance_to_see(pts, centre, aspect, pad, margin)
+        self.target = tuple(centre)
+        tan_v = math.tan(math.radians(self.fov) / 2)
+        self.distance = min(MAX_DISTANCE, max(MIN_DISTANCE, need, 0.5 / tan_v))  # at least 1 m of view height
+
+    def sees(self, points: np.ndarray, aspect: float = 16 / 9, pad: float = 0.15) -> bool:
+        """Whether every world point (M, 3), `pad` metres around it, is in view as the camera is."""
+        pts = np.asarray(points, float).reshape(-1, 3)
+        return self._distance_to_see(pts, np.asarray(self.target, float), aspect, pad, 1.0) <= self.distance
+
+    def _distance_to_see(self, points: np.ndarray, target: np.ndarray, aspect: float, pad: float,
+                         margin: float) -> float:
+        """The least distance from `target` at which the camera, at its angles, sees every point
+        (M, 3) with `pad` metres around it and `margin` times its offset from the target."""
+        right, up, back = ((points - target) @ self.basis().T).T
         tan_v = math.tan(math.radians(self.fov) / 2)
         spread = np.maximum((np.abs(right) + pad) / (tan_v * aspect), (np.abs(up) + pad) / tan_v)
-        need = float(np.max(back + margin * spread))
-        self.target = tuple(centre)
-        self.distance = min(MAX_DISTANCE, max(MIN_DISTANCE, need, 0.5 / tan_v))  # at least 1 m of view height
+        return float(np.max(back + margin * spread))

@@ -2,6 +2,7 @@
 the camera, it shows the frame it is given, its playback keys only ask, and grab_png writes a
 picture. (The playback clock itself is app.playback.Playback, tested in tests/app.)"""
 import os
+from dataclasses import replace
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
@@ -140,3 +141,18 @@ def test_a_moving_camera_renders_smaller_and_full_size_once_it_rests(viewport, q
     QApplication.sendEvent(viewport, wheel)
     qtbot.waitUntil(lambda: viewport.rendered_size == (160, 120))
     qtbot.waitUntil(lambda: viewport.rendered_size == (320, 240))
+
+
+def test_a_new_clip_keeps_the_camera_while_it_stays_in_view(viewport):
+    """Framed anew for every clip, the view moved with each live preview of a drag and lost the
+    artist's pan and zoom; a clip that leaves the view is framed."""
+    viewport.camera.zoom(1.3)      # the artist steps back a little, and pans
+    viewport.camera.pan(0.02, 0.0)
+    kept = (viewport.camera.target, viewport.camera.distance)
+    clip = carry_clip(12)
+    viewport.set_clip(clip)
+    assert (viewport.camera.target, viewport.camera.distance) == kept and viewport.frame == 0
+    away = replace(clip, joints=clip.joints + np.array([8.0, 0.0, 0.0], np.float32))
+    viewport.set_clip(away)
+    assert viewport.camera.sees(away.joints.reshape(-1, 3), viewport.width() / viewport.height())
+    assert viewport.camera.target != kept[0]

@@ -90,6 +90,9 @@ def test_frame_all_fits_the_points_tightly(yaw, pitch, aspect):
     ndc = np.abs(clip[:, :2] / clip[:, 3:])
     assert (clip[:, 3] > 0).all() and ndc.max() <= 1.0 + 1e-6
     assert ndc.max() > 0.98
+    assert camera.sees(points, aspect, pad=0.0)                        # as its projection says
+    grown = camera.target + 1.3 * (points - camera.target)
+    assert not camera.sees(grown, aspect, pad=0.0)
 
 
 def test_a_ghost_is_one_translucent_layer_over_the_scene(renderer):
