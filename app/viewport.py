@@ -116,12 +116,13 @@ class Viewport(QWidget):
 
     def set_clip(self, clip: MotionClip | None) -> None:
         """A new clip, from its first frame. The camera frames it where no motion was shown
-        before or this one leaves the view, and else stays where it is: framed anew, the view
-        moved with every live preview of a drag (and lost the artist's pan and zoom)."""
-        shown = self._clip is not None
-        self._clip = clip
-        self._playhead = 0
-        if shown and clip is not None and self.camera.sees(self._whole_scene_points(), self._aspect()):
+        before, or where the last was all in view and this one leaves it; else it stays where it
+        is: framed anew, the view moved with every live preview of a drag, and lost the artist's
+        pan and zoom."""
+        old, self._clip, self._playhead = self._clip, clip, 0
+        aspect = self._aspect()
+        if old is not None and clip is not None and (self.camera.sees(self._whole_scene_points(clip), aspect)
+                                                     or not self.camera.sees(self._whole_scene_points(old), aspect)):
             self.update_view()
         else:
             self.frame_all()
@@ -162,14 +163,14 @@ class Viewport(QWidget):
             self.update_view()
 
     def frame_all(self) -> None:
-        self.camera.frame_all(self._whole_scene_points(), self._aspect())
+        self.camera.frame_all(self._whole_scene_points(self._clip), self._aspect())
         self.update_view()
 
-    def _whole_scene_points(self) -> np.ndarray:
-        """World points (M, 3) of the scene over the whole motion, not one frame."""
-        scene = scene_from_clip(self._clip, self.frame, self._storyboard, self.options)
-        if self._clip is not None:
-            scene.people = self._clip.joints.reshape(-1, 22, 3)
+    def _whole_scene_points(self, clip: MotionClip | None) -> np.ndarray:
+        """World points (M, 3) of the scene with `clip`, over the whole motion, not one frame."""
+        scene = scene_from_clip(clip, self._playhead, self._storyboard, self.options)
+        if clip is not None:
+            scene.people = clip.joints.reshape(-1, 22, 3)
         return scene.points()
 
     def _aspect(self) -> float:

@@ -145,7 +145,7 @@ def test_a_moving_camera_renders_smaller_and_full_size_once_it_rests(viewport, q
 
 def test_a_new_clip_keeps_the_camera_while_it_stays_in_view(viewport):
     """Framed anew for every clip, the view moved with each live preview of a drag and lost the
-    artist's pan and zoom; a clip that leaves the view is framed."""
+    artist's pan and zoom; a clip that leaves a view the last one was all in is framed."""
     viewport.camera.zoom(1.3)      # the artist steps back a little, and pans
     viewport.camera.pan(0.02, 0.0)
     kept = (viewport.camera.target, viewport.camera.distance)
@@ -156,3 +156,7 @@ def test_a_new_clip_keeps_the_camera_while_it_stays_in_view(viewport):
     viewport.set_clip(away)
     assert viewport.camera.sees(away.joints.reshape(-1, 3), viewport.width() / viewport.height())
     assert viewport.camera.target != kept[0]
+    viewport.camera.zoom(0.3)                    # closer in than the motion fits: left so
+    kept = (viewport.camera.target, viewport.camera.distance)
+    viewport.set_clip(replace(away, joints=away.joints + np.array([0.2, 0.0, 0.0], np.float32)))
+    assert (viewport.camera.target, viewport.camera.distance) == kept
