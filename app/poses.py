@@ -49,10 +49,11 @@ def new_keypose(sb: Storyboard, agent: str, frame: int) -> tuple[np.ndarray, np.
 def carried_along(sb: Storyboard, agent: str, since: Keypose | None, frame: int) -> np.ndarray:
     """How far (2,) on the sketch the agent's pelvis stroke takes them from key `since` to `frame`
     (from the stroke's start, where the key comes before it); zero where no stroke spans `frame`."""
-    pelvis = _pelvis_stroke_at(sb, agent, frame)
-    if since is None or pelvis is None:
+    stroke = _pelvis_stroke_at(sb, agent, frame)
+    if since is None or stroke is None:
         return np.zeros(2)
-    return pelvis[frame] - pelvis[max(since.frame, min(pelvis))]
+    first = min(stroke)   # the stroke's first frame
+    return stroke[frame] - stroke[max(since.frame, first)]
 
 
 def _pelvis_stroke_at(sb: Storyboard, agent: str, frame: int) -> dict[int, np.ndarray] | None:

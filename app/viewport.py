@@ -17,7 +17,8 @@ the playback model (app.playback.Playback) answers.
 Public API (everything else is private):
     Viewport(parent=None, config: RenderConfig | None = None)
     set_clip(clip: MotionClip | None)      show a motion from frame 0; frames the camera on it
-                                           where it was empty or the motion leaves the view
+                                           where none was shown, or the last was all in view
+                                           and this one leaves it
     set_preview(clip: MotionClip)          slot for streamed previews: same, but keeps the frame
                                            and the camera
     warm_up()                              build the renderer now; its shaders compile over the
@@ -42,6 +43,7 @@ from __future__ import annotations
 
 import threading
 
+import numpy as np
 from PySide6.QtCore import QBuffer, QByteArray, QIODevice, QPointF, Qt, QTimer, Signal, Slot
 from PySide6.QtGui import QColor, QImage, QPainter
 from PySide6.QtWidgets import QWidget

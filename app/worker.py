@@ -79,9 +79,9 @@ class GenerationWorker(QObject):
                     result: GenerationResult = stop.value
                     self.finished.emit(result)
                     return
-                now = time.monotonic()
                 if self._preview_interval_s is None:
                     continue
+                now = time.monotonic()
                 if now - handed_over >= self._preview_interval_s or event.step == event.num_steps - 1:
                     event.preview  # decoded here, in the worker, not on the GUI thread
                     self._post(event)
