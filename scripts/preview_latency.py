@@ -5,7 +5,7 @@ then, again and again, presses on a person's wrist at a key, drags it with a mou
 16 ms for 0.8 s, rests with the button down and measures the time from the last move to the 3D
 view's picture of the preview of the resting storyboard. Prints each drag and the median / worst.
 
-    xvfb-run -s "-screen 0 1366x768x24" .venv/bin/python scripts/preview_latency.py [EXAMPLE FRAME DRAGS]
+    xvfb-run -a -s "-screen 0 1366x768x24" .venv/bin/python scripts/preview_latency.py [EXAMPLE FRAME DRAGS]
 """
 from __future__ import annotations
 
