@@ -13,10 +13,10 @@ import numpy as np
 from engine.facing import depth_of, facing, lift
 from engine.finishing.warp import LEVEL
 from engine.finishing.held import sketched_rest
-from engine.geometry.polylines import resample_polyline
+from engine.controls import stroke_per_frame
 from engine.poses import REACHES_FOR, hands_placed, library_pose, library_pose_2d, reach_of, standing_pose_2d
 from engine.skeleton import FEET, HANDS, JOINT_INDEX, NUM_JOINTS
-from engine.storyboard import Keypose, Storyboard
+from engine.storyboard import Keypose, Storyboard, Trajectory
 from engine.synth.reach import heading_of, yaw_matrix
 
 
@@ -40,29 +40,26 @@ def new_keypose(sb: Storyboard, agent: str, frame: int) -> tuple[np.ndarray, np.
         return previous.points + carried_along(sb, agent, previous, frame), previous.mask.copy()
     offset = 0.8 * (sb.agent_index(agent) - (len(sb.agents) - 1) / 2)
     points = standing_pose_2d(sb.camera) + (offset, 0.0)
-    pelvis = _pelvis_stroke_at(sb, agent, frame)
-    if pelvis is not None:
-        points += pelvis[frame] - points[0]
+    stroke = _pelvis_stroke(sb, agent, frame)
+    if stroke is not None:
+        points += stroke_per_frame(stroke)[frame - stroke.start] - points[0]
     return points, np.ones(len(points), bool)
 
 
 def carried_along(sb: Storyboard, agent: str, since: Keypose | None, frame: int) -> np.ndarray:
     """How far (2,) on the sketch the agent's pelvis stroke takes them from key `since` to `frame`
     (from the stroke's start, where the key comes before it); zero where no stroke spans `frame`."""
-    stroke = _pelvis_stroke_at(sb, agent, frame)
+    stroke = _pelvis_stroke(sb, agent, frame)
     if since is None or stroke is None:
         return np.zeros(2)
-    first = min(stroke)   # the stroke's first frame
-    return stroke[frame] - stroke[max(since.frame, first)]
+    along = stroke_per_frame(stroke)
+    return along[frame - stroke.start] - along[max(since.frame, stroke.start) - stroke.start]
 
 
-def _pelvis_stroke_at(sb: Storyboard, agent: str, frame: int) -> dict[int, np.ndarray] | None:
-    """{frame: sketch point (2,)} over the frames of the agent's pelvis stroke that spans `frame`,
-    read as the model reads a stroke (evenly along it: engine.controls), or None."""
-    for tr in sb.trajectories:
-        if tr.agent == agent and tr.joint == "pelvis" and tr.start <= frame <= tr.end:
-            return dict(zip(range(tr.start, tr.end + 1), resample_polyline(tr.points, tr.end - tr.start + 1)))
-    return None
+def _pelvis_stroke(sb: Storyboard, agent: str, frame: int) -> Trajectory | None:
+    """The agent's pelvis stroke that spans `frame`, if any."""
+    return next((tr for tr in sb.trajectories
+                 if tr.agent == agent and tr.joint == "pelvis" and tr.start <= frame <= tr.end), None)
 
 
 def stamped_pose(sb: Storyboard, agent: str, frame: int, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -27,6 +27,8 @@ from engine.sampling.events import GenerationResult, StepEvent
 
 from .generation import StepStream
 
+STEP_INTERVAL_S = 0.1   # the least time between two steps handed to the GUI
+
 
 class GenerationWorker(QObject):
     stepReady = Signal()                 # take_latest() has an event
@@ -34,7 +36,7 @@ class GenerationWorker(QObject):
     failed = Signal(str)                 # one-line message
     cancelled = Signal()
 
-    def __init__(self, make_stream: Callable[[], StepStream], preview_interval_s: float | None = 0.1):
+    def __init__(self, make_stream: Callable[[], StepStream], preview_interval_s: float | None = STEP_INTERVAL_S):
         """preview_interval_s: the least time between two steps handed over; None: no step is."""
         super().__init__()
         self._make_stream = make_stream
@@ -118,7 +120,7 @@ class GenerationRunner(QObject):
             return False
         self._thread = QThread()
         self._thread.setObjectName("generation")
-        self._worker = GenerationWorker(make_stream, 0.1 if streams_steps else None)
+        self._worker = GenerationWorker(make_stream, STEP_INTERVAL_S if streams_steps else None)
         self._worker.moveToThread(self._thread)
         self._thread.started.connect(self._worker.run)
         self._worker.stepReady.connect(self._on_step_ready)

@@ -24,7 +24,7 @@ import numpy as np
 
 from .geometry.polylines import resample_polyline
 from .skeleton import JOINT_INDEX, NUM_JOINTS
-from .storyboard import HANDS, Storyboard
+from .storyboard import HANDS, ObjectPath, Storyboard, Trajectory
 
 
 @dataclass
@@ -48,6 +48,12 @@ class Controls:
         return self.kp_mask | self.tr_mask
 
 
+def stroke_per_frame(stroke: Trajectory | ObjectPath) -> np.ndarray:
+    """A stroke's sketch point at each frame of its span (end - start + 1, 2): evenly along it in
+    arc length, as the model reads it."""
+    return resample_polyline(stroke.points, stroke.end - stroke.start + 1)
+
+
 def build_controls(sb: Storyboard) -> Controls:
     n, h, o = sb.length, len(sb.agents), len(sb.objects)
     k_max = max([len(ob.spec.anchors) for ob in sb.objects] + [1])
@@ -64,7 +70,7 @@ def build_controls(sb: Storyboard) -> Controls:
         c.kp_mask[kp.frame, a] |= kp.mask
     for tr in sb.trajectories:
         a, j = sb.agent_index(tr.agent), JOINT_INDEX[tr.joint]
-        c.tr2d[tr.start:tr.end + 1, a, j] = resample_polyline(tr.points, tr.end - tr.start + 1)
+        c.tr2d[tr.start:tr.end + 1, a, j] = stroke_per_frame(tr)
         c.tr_mask[tr.start:tr.end + 1, a, j] = True
     for key in sb.object_keys:
         i = sb.object_index(key.object)
@@ -73,7 +79,7 @@ def build_controls(sb: Storyboard) -> Controls:
         c.obj_mask[key.frame, i] = True
     for p in sb.object_paths:
         i = sb.object_index(p.object)
-        c.objpath2d[p.start:p.end + 1, i] = resample_polyline(p.points, p.end - p.start + 1)
+        c.objpath2d[p.start:p.end + 1, i] = stroke_per_frame(p)
         c.objpath_mask[p.start:p.end + 1, i] = True
     for ct in sb.contacts:
         a, hand = sb.agent_index(ct.agent), HANDS.index(ct.hand)
