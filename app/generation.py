@@ -93,13 +93,13 @@ def drawn_cast(storyboard: Storyboard) -> Storyboard:
     return replace(storyboard, agents=storyboard.agents[:last + 1])
 
 
-def warm_up(storyboard_path: Path, steps: int = 2) -> None:
-    """Load the model and run a short generation of the storyboard at `storyboard_path`, so that
+def warm_up(storyboard_path: Path, settings: GenerationSettings = GenerationSettings(steps=2)) -> None:
+    """Load the model and run a short generation (`settings`) of the storyboard at `storyboard_path`, so that
     the artist's first Generate runs at full speed: in a fresh process the first generation took
     1.8 s against 0.8 s for the next (loading, and every kernel's first call at these shapes).
     Runs on any thread; a failure is left to the first Generate, which reports it properly."""
     from engine.generate import run_generation
     try:
-        run_generation(start_generation(Storyboard.load(storyboard_path), GenerationSettings(steps=steps)))
+        run_generation(start_generation(Storyboard.load(storyboard_path), settings))
     except Exception as e:  # noqa: BLE001  the app must start whatever the model or the file does
         print(f"warm-up skipped: {type(e).__name__}: {e}", file=sys.stderr)

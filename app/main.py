@@ -35,19 +35,24 @@ def main(argv: list[str] | None = None) -> int:
     from .examples import EXAMPLES_DIR
     from .generation import warm_up
     from .mainwindow import APP_NAME, MainWindow
+    from .preview_process import PreviewProcess
 
+    previews = PreviewProcess(EXAMPLES_DIR / "box_handoff.json")   # first: its start-up overlaps the window's
     app = QApplication([sys.argv[0], *argv])
     app.setOrganizationName("Sketch2Colab")
     app.setApplicationName(APP_NAME)
     data_dir = Path(QStandardPaths.writableLocation(QStandardPaths.AppDataLocation))
-    window = MainWindow(data_dir=data_dir, settings=QSettings())
+    window = MainWindow(data_dir=data_dir, settings=QSettings(), generate=previews.generate)
     window.show()
     threading.Thread(target=warm_up, args=(EXAMPLES_DIR / "box_handoff.json",), name="warm-up", daemon=True).start()
     recovered = window.offer_recovery()
     files = [a for a in argv if not a.startswith("-")]
     if files and not recovered:
         window.open_file(files[0])
-    return app.exec()
+    try:
+        return app.exec()
+    finally:
+        previews.close()
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ from app import commands as cmd  # noqa: E402
 from app.examples import EXAMPLES_DIR  # noqa: E402
 from app.generation import warm_up  # noqa: E402
 from app.mainwindow import MainWindow  # noqa: E402
+from app.preview_process import PreviewProcess  # noqa: E402
 from engine.skeleton import JOINT_INDEX  # noqa: E402
 
 WRIST = JOINT_INDEX["r_wrist"]
@@ -42,9 +43,11 @@ def rest(ms: int) -> None:
 
 
 def main(example: str = "box_handoff", frame: int = 49, drags: int = 8) -> None:
+    previews = PreviewProcess(EXAMPLES_DIR / "box_handoff.json")   # as app.main starts it
     app = QApplication(sys.argv[:1])
     folder = Path(tempfile.mkdtemp(prefix="preview_latency_"))
-    window = MainWindow(data_dir=folder / "data", settings=QSettings(str(folder / "settings.ini"), QSettings.IniFormat))
+    window = MainWindow(data_dir=folder / "data", settings=QSettings(str(folder / "settings.ini"), QSettings.IniFormat),
+                        generate=previews.generate)
     window.resize(1366, 740)
     window.show()
     threading.Thread(target=warm_up, args=(EXAMPLES_DIR / "box_handoff.json",), daemon=True).start()
@@ -54,7 +57,9 @@ def main(example: str = "box_handoff", frame: int = 49, drags: int = 8) -> None:
     render = window.viewport._render
     window.viewport._render = lambda: (render(), rendered.append(time.perf_counter()))
     window.session.finished.connect(lambda result: ended.append((time.perf_counter(), result.wall_time_s)))
-    rest(8000)                          # the warm-up
+    rest(8000)                          # the warm-ups
+    while not previews.ready:           # the preview process' (on a slow machine, longer)
+        rest(500)
     window.doc.set_frame(frame)
     window.doc.set_tool("select")
     canvas = window.canvas

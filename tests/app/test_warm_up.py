@@ -7,7 +7,7 @@ from functools import lru_cache
 
 import app.generation
 from app.examples import EXAMPLES_DIR
-from app.generation import warm_up
+from app.generation import GenerationSettings, warm_up
 from engine.models.bundle import untrained_bundle
 
 
@@ -38,7 +38,7 @@ def test_warm_up_runs_a_generation_and_never_raises(monkeypatch, capsys):
     original = app.generation.start_generation
     monkeypatch.setattr(app.generation, "start_generation",
                         lambda sb, settings: (ran.append((sb.length, settings.steps)), original(sb, settings))[1])
-    warm_up(EXAMPLES_DIR / "box_handoff.json", steps=1)
+    warm_up(EXAMPLES_DIR / "box_handoff.json", GenerationSettings(steps=1))
     assert ran == [(120, 1)] and capsys.readouterr().err == ""
 
     warm_up(EXAMPLES_DIR / "no_such_storyboard.json")
