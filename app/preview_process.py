@@ -16,11 +16,14 @@ parent's end of the pipe closes, so a killed app leaves no process behind.
 """
 from __future__ import annotations
 
-import multiprocessing
+import os
 import pickle
+import socket
+import subprocess
 import sys
 import threading
 import traceback
+from multiprocessing.connection import Connection
 from pathlib import Path
 
 import numpy as np
@@ -33,27 +36,39 @@ from .generation import GenerationSettings, StepStream, start_generation, warm_u
 
 class PreviewProcess:
     def __init__(self, warm_up_storyboard: Path | None = None):
-        """Spawns the child now; it loads the model (and warms up on `warm_up_storyboard`) in the
-        background. The app's first previews run on the generation thread meanwhile."""
-        context = multiprocessing.get_context("spawn")   # a fork would copy the GUI's threads' locks
-        self._conn, child_end = context.Pipe()
-        self._process = context.Process(target=serve, args=(child_end, warm_up_storyboard),
-                                        name="sketch2colab-preview", daemon=True)
-        self._process.start()
-        child_end.close()
+        """Starts the child now; it loads the model (and warms up on `warm_up_storyboard`) in the
+        background. The app's first previews run on the generation thread meanwhile. The child is
+        `python -m app.preview_process`, not a multiprocessing spawn: that re-runs the parent's
+        main script, which a program started from a pipe or `-c` does not have."""
         self._sending = threading.Lock()    # the GUI thread (close) and the generation thread send
         self._ready = False
         self._run = 0
+        ours, theirs = socket.socketpair()
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(__file__).parents[1]),
+                                                                         os.environ.get("PYTHONPATH")]))}
+        try:
+            self._process = subprocess.Popen(
+                [sys.executable, "-m", "app.preview_process", str(theirs.fileno()), str(warm_up_storyboard or "")],
+                pass_fds=[theirs.fileno()], env=env, stdin=subprocess.DEVNULL)
+        except OSError as e:   # no child: every preview runs here
+            print(f"the preview process did not start: {e}", file=sys.stderr)
+            self._process = None
+        theirs.close()
+        self._conn = Connection(ours.detach())
+
+    @property
+    def alive(self) -> bool:
+        return self._process is not None and self._process.poll() is None
 
     @property
     def ready(self) -> bool:
-        """The child is up and warmed up (read on the GUI thread; until true no run uses the pipe)."""
-        if not self._ready and self._process.is_alive():
+        """The child is up and warmed up (read where runs start: until true no run uses the pipe)."""
+        if not self._ready and self.alive:
             try:
                 self._ready = self._conn.poll() and self._conn.recv() == ("ready",)
             except (EOFError, OSError):
                 pass
-        return self._ready and self._process.is_alive()
+        return self._ready and self.alive
 
     def generate(self, storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
         """What the session runs: previews in the child once it is ready, the rest here."""
@@ -101,10 +116,12 @@ class PreviewProcess:
     def close(self, timeout_s: float = 2.0) -> None:
         """Ask the child to quit and wait for it (then end it)."""
         self._send(("quit",))
-        self._process.join(timeout_s)
-        if self._process.is_alive():
-            self._process.terminate()
-            self._process.join(timeout_s)
+        if self._process is not None:
+            try:
+                self._process.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self._process.kill()
+                self._process.wait(timeout_s)
         self._conn.close()
 
 
@@ -166,3 +183,7 @@ def _sendable(error: Exception) -> Exception:
     except Exception:  # noqa: BLE001
         print(f"preview failed: {type(error).__name__}: {error}", file=sys.stderr)
         return RuntimeError(f"{type(error).__name__}: {error}".splitlines()[0])
+
+
+if __name__ == "__main__":   # the child: python -m app.preview_process FD [WARM_UP_STORYBOARD]
+    serve(Connection(int(sys.argv[1])), Path(sys.argv[2]) if len(sys.argv) > 2 and sys.argv[2] else None)

@@ -3,7 +3,6 @@ same preview run here, a cancelled run's late answers never taken for the next r
 failure reported as the run's own, previews here while it is not up, and no child outliving its
 app (closed, or killed)."""
 import os
-import signal
 import subprocess
 import sys
 import textwrap
@@ -36,7 +35,7 @@ def previews():
     wait_ready(process)
     yield process
     process.close()
-    assert not process._process.is_alive()
+    assert not process.alive
 
 
 @pytest.fixture(scope="module")
@@ -87,10 +86,10 @@ def test_previews_run_here_while_the_child_is_gone(storyboard):
     wait_ready(process)
     stream = process.generate(storyboard, PREVIEW)
     next(stream)
-    os.kill(process._process.pid, signal.SIGKILL)
+    process._process.kill()
     with pytest.raises(RuntimeError, match="the preview process stopped"):
         run_generation(stream)
-    process._process.join(10)
+    process._process.wait(10)
     assert not process.ready
     assert process.generate(storyboard, PREVIEW).gi_code is start_generation.__code__   # here, as before it was up
     process.close()
