@@ -127,3 +127,30 @@ def _alive(pid: int) -> bool:
             return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
     except FileNotFoundError:
         return False
+
+
+def test_a_drag_in_the_window_is_previewed_in_the_child(qtbot, make_window, previews, monkeypatch):
+    from PySide6.QtCore import Qt
+
+    from app import commands as cmd
+
+    from .fakes import sample_storyboard
+    from .test_live_preview import WRIST, drag_wrist, px
+
+    streamed = []
+    stream = previews._stream
+    monkeypatch.setattr(previews, "_stream", lambda sb, settings: (streamed.append(sb), stream(sb, settings))[1])
+    window = make_window(generate=previews.generate)
+    window.doc.replace_storyboard(sample_storyboard(), None)
+    window.doc.set_frame(60)
+    window.doc.set_tool("select")
+    resting = drag_wrist(qtbot, window, [np.array([0.004 * i, 0.002 * i]) for i in range(1, 21)])
+    qtbot.waitUntil(lambda: window.doc.result_is_preview and not window.session.running, timeout=20000)
+    assert streamed                                          # the previews ran in the child
+    dragged = cmd.find_keypose(streamed[-1], "A", 60).points[WRIST]
+    np.testing.assert_allclose(dragged, resting, atol=0.01)  # the newest of them: the resting pointer's
+    assert window.doc.clip is not None and np.isfinite(window.doc.clip.joints).all()
+    previewed = len(streamed)
+    qtbot.mouseRelease(window.canvas, Qt.LeftButton, pos=px(window.canvas, resting))
+    qtbot.waitUntil(lambda: bool(window.doc.takes) and not window.session.running, timeout=60000)
+    assert len(streamed) == previewed and not window.doc.result_is_preview   # the full generation ran here
