@@ -132,7 +132,8 @@ def _not_decoded():
 def serve(conn, warm_up_storyboard: Path | None) -> None:
     """The child's loop (conn: its end of the pipe). Returns on quit or when the app is gone."""
     if warm_up_storyboard is not None:
-        warm_up(warm_up_storyboard, GenerationSettings(preview=True))
+        # on one thread: the app warms its own model up at the same moment, on the other core
+        warm_up(warm_up_storyboard, GenerationSettings(preview=True, threads=1))
     try:
         conn.send(("ready",))
         waiting = None
