@@ -2,7 +2,12 @@
 
 On the generation thread a preview shares the interpreter lock with the GUI thread, which draws
 the last preview while the next one runs: on 2 cores under Xvfb the preview of the resting pointer
-ran 86-130 ms in the app against 52-75 ms alone. In a child process the two run side by side.
+ran 86-130 ms in the app against 52-75 ms alone. In a child process the two run side by side
+(scripts/preview_latency.py, alternated with previews on the thread: pointer stop to picture,
+median 221 / 268 ms -> 152 / 126 ms, worst 254 / 319 -> 223 / 229 ms). The price is a second copy
+of the model in memory (the child: 340 MB resident). Full generations stay on the generation
+thread: the steps they stream are decoded for the views where the model is, and a child's steps
+would need decoding there and sending across.
 
 The child loads the model, warms the preview path up and says it is ready; until then (and if it
 ever stops) previews run on the generation thread as before. It serves one request at a time:
