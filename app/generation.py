@@ -1,7 +1,8 @@
 """The one place where the app reaches the sampler: settings in, a generator of StepEvents out.
 
 `start_generation` is what the worker drives; tests hand the worker a fake with the same shape.
-`warm_up` readies the model in the background while the artist starts sketching.
+`warm_up` readies the model while the artist starts sketching. In the app both run in the
+generation process (app.engine_process); tests run them here.
 """
 from __future__ import annotations
 
@@ -34,6 +35,15 @@ class GenerationSettings:
     threads: int | None = None      # torch threads (None: the cores other programs leave free)
     reserve_cores: float = 0.0      # cores left to the viewport's drawing (software OpenGL)
 
+
+    @property
+    def streams_steps(self) -> bool:
+        """Whether the run's steps are shown as it goes: a live preview's are not (its result
+        comes within a tenth of a second, and its steps decoded and drawn took the cores from it)."""
+        return not self.preview
+
+
+STEP_INTERVAL_S = 0.1   # the least time between two steps handed to the views
 
 # Settings of this machine or this moment, not of a take (left out of the takes kept).
 MACHINE_SETTINGS = ("preview", "threads", "reserve_cores")

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import os
 import sys
-import threading
 from pathlib import Path
 
 NO_DISPLAY = ("sketch2colab-studio needs a display, and none was found (DISPLAY and WAYLAND_DISPLAY "
@@ -28,23 +27,20 @@ def main(argv: list[str] | None = None) -> int:
     # the live preview (2 cores under Xvfb: 195-222 ms median from the pointer's stop to the
     # preview shown, against 165-188 ms). A hardware driver ignores the variable.
     os.environ.setdefault("LP_NUM_THREADS", "0")
-    import torch  # noqa: F401  loaded now, not on the first Generate, where its import would stall the GUI
     from PySide6.QtCore import QSettings, QStandardPaths
     from PySide6.QtWidgets import QApplication
 
+    from .engine_process import EngineProcess
     from .examples import EXAMPLES_DIR
-    from .generation import warm_up
     from .mainwindow import APP_NAME, MainWindow
-    from .preview_process import PreviewProcess
 
-    previews = PreviewProcess(EXAMPLES_DIR / "box_handoff.json")   # first: its start-up overlaps the window's
+    engine = EngineProcess(EXAMPLES_DIR / "box_handoff.json")   # first: the model loads while the window opens
     app = QApplication([sys.argv[0], *argv])
     app.setOrganizationName("Sketch2Colab")
     app.setApplicationName(APP_NAME)
     data_dir = Path(QStandardPaths.writableLocation(QStandardPaths.AppDataLocation))
-    window = MainWindow(data_dir=data_dir, settings=QSettings(), generate=previews.generate)
+    window = MainWindow(data_dir=data_dir, settings=QSettings(), generate=engine.generate)
     window.show()
-    threading.Thread(target=warm_up, args=(EXAMPLES_DIR / "box_handoff.json",), name="warm-up", daemon=True).start()
     recovered = window.offer_recovery()
     files = [a for a in argv if not a.startswith("-")]
     if files and not recovered:
@@ -52,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return app.exec()
     finally:
-        previews.close()
+        engine.close()
 
 
 if __name__ == "__main__":

@@ -147,7 +147,7 @@ class GenerationSession(QObject):
         self._started_at = time.monotonic()
         self._run_version = self._document_version
         generate = self.generate
-        self._runner.start(lambda: generate(storyboard, settings), streams_steps=not settings.preview)
+        self._runner.start(lambda: generate(storyboard, settings), streams_steps=settings.streams_steps)
 
     def shutdown(self) -> None:
         """Cancel and join the thread (window close, tests)."""

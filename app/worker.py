@@ -3,14 +3,14 @@
 The worker drives a generator of StepEvents on its own thread. Steps reach the GUI through a
 one-slot mailbox: the worker overwrites the latest event and signals only when the GUI has taken
 the previous one, so a fast sampler never builds a backlog in the GUI's event queue (the GUI
-simply skips to the newest step) and a slow one delivers every step. The sampler chooses its
-own thread count (engine.cpu), on this thread. Decoding a step's preview
+simply skips to the newest step) and a slow one delivers every step. In the app the stream is
+the generation process' (app.engine_process), which decodes the steps to show itself: those are
+handed over as they come. Decoding a step's preview
 costs about a third of the step itself, and drawing it takes the same two cores where OpenGL
 runs in software (under Xvfb a generation took 2.8 s with every step drawn, 1.4-1.9 s with ten a
 second, 1.0-1.2 s with none), so the worker hands over at most one step per `preview_interval_s`
 (10 a second: a 1 s generation still looks live) and always the last. A live preview hands over
-none: its result comes within a tenth of a second, and its two steps decoded and drawn took the
-cores from it (after the pointer stopped it ran 156 ms, against 81 ms without; 52 ms alone).
+none (GenerationSettings.streams_steps).
 Cancel sets a flag the worker checks between steps; it then closes the generator, which cancels
 the sampler.
 """
@@ -25,9 +25,7 @@ from PySide6.QtCore import QObject, QThread, Signal, Slot
 
 from engine.sampling.events import GenerationResult, StepEvent
 
-from .generation import StepStream
-
-STEP_INTERVAL_S = 0.1   # the least time between two steps handed to the GUI
+from .generation import STEP_INTERVAL_S, StepStream
 
 
 class GenerationWorker(QObject):
@@ -81,10 +79,11 @@ class GenerationWorker(QObject):
                     result: GenerationResult = stop.value
                     self.finished.emit(result)
                     return
-                if self._preview_interval_s is None:
+                if self._preview_interval_s is None or event.decode is None:   # none, or not this one
                     continue
                 now = time.monotonic()
-                if now - handed_over >= self._preview_interval_s or event.step == event.num_steps - 1:
+                decoded = "preview" in vars(event)    # by the generation process, which chose it
+                if decoded or now - handed_over >= self._preview_interval_s or event.step == event.num_steps - 1:
                     event.preview  # decoded here, in the worker, not on the GUI thread
                     self._post(event)
                     handed_over = now

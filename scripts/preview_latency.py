@@ -13,23 +13,20 @@ import os
 import statistics
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
 os.environ.setdefault("LP_NUM_THREADS", "0")   # as app.main sets it
-import torch  # noqa: F401,E402  as app.main loads it: before the window
 from PySide6.QtCore import QEventLoop, QPoint, QPointF, QSettings, Qt, QTimer  # noqa: E402
 from PySide6.QtGui import QMouseEvent  # noqa: E402
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
 from app import commands as cmd  # noqa: E402
 from app.examples import EXAMPLES_DIR  # noqa: E402
-from app.generation import warm_up  # noqa: E402
 from app.mainwindow import MainWindow  # noqa: E402
-from app.preview_process import PreviewProcess  # noqa: E402
+from app.engine_process import EngineProcess  # noqa: E402
 from engine.skeleton import JOINT_INDEX  # noqa: E402
 
 WRIST = JOINT_INDEX["r_wrist"]
@@ -43,23 +40,22 @@ def rest(ms: int) -> None:
 
 
 def main(example: str = "box_handoff", frame: int = 49, drags: int = 8) -> None:
-    previews = PreviewProcess(EXAMPLES_DIR / "box_handoff.json")   # as app.main starts it
+    engine = EngineProcess(EXAMPLES_DIR / "box_handoff.json")   # as app.main starts it
     app = QApplication(sys.argv[:1])
     folder = Path(tempfile.mkdtemp(prefix="preview_latency_"))
     window = MainWindow(data_dir=folder / "data", settings=QSettings(str(folder / "settings.ini"), QSettings.IniFormat),
-                        generate=previews.generate)
+                        generate=engine.generate)
     window.resize(1366, 740)
     window.show()
-    threading.Thread(target=warm_up, args=(EXAMPLES_DIR / "box_handoff.json",), daemon=True).start()
     window.open_file(str(EXAMPLES_DIR / f"{example}.json"))
     rendered: list[float] = []          # when the 3D view finished a picture
     ended: list[tuple[float, float]] = []   # (when, the preview's own seconds) per finished run
     render = window.viewport._render
     window.viewport._render = lambda: (render(), rendered.append(time.perf_counter()))
     window.session.finished.connect(lambda result: ended.append((time.perf_counter(), result.wall_time_s)))
-    rest(8000)                          # the warm-ups
-    while not previews.ready:           # the preview process' (on a slow machine, longer)
+    while not engine.ready:             # its warm-up (and the view's)
         rest(500)
+    rest(2000)
     window.doc.set_frame(frame)
     window.doc.set_tool("select")
     canvas = window.canvas

@@ -22,7 +22,8 @@ class StepEvent:
     num_steps: int
     t: float                     # solver time after this step (1 = noise, 0 = data)
     latent: np.ndarray           # (K, T_lat, V, d) current latent of all K variations
-    decode: Callable[[], MotionClip]  # decodes the current motion, variation 0 (see preview)
+    decode: Callable[[], MotionClip] | None  # decodes the current motion, variation 0 (see preview);
+                                             # None: not here (a step from another process not shown)
     phase: np.ndarray            # (N, 3) CTMC occupancy of approach / contact / carry per frame
     energies: dict[str, float] = field(default_factory=dict)  # energy name -> value at this step
 

@@ -1,23 +1,27 @@
-"""Live previews in a process of their own.
+"""Generation in a process of its own: the window's process never loads the model.
 
-On the generation thread a preview shares the interpreter lock with the GUI thread, which draws
-the last preview while the next one runs: on 2 cores under Xvfb the preview of the resting pointer
-ran 86-130 ms in the app against 52-75 ms alone. In a child process the two run side by side
-(scripts/preview_latency.py, alternated with previews on the thread: pointer stop to picture,
-median 221 / 268 ms -> 152 / 126 ms, worst 254 / 319 -> 223 / 229 ms). The price is a second copy
-of the model in memory (the child: 340 MB resident). Full generations stay on the generation
-thread: the steps they stream are decoded for the views where the model is, and a child's steps
-would need decoding there and sending across.
+On the generation thread a run shares the interpreter lock with the GUI thread, which draws while
+it runs: on 2 cores under Xvfb the live preview of the resting pointer ran 86-130 ms in the app
+against 52-75 ms alone, and a full generation after a drag's release 468-543 ms against 260-410.
+In a child process the two run side by side (scripts/preview_latency.py, alternated with previews
+on the thread: pointer stop to picture, median 221 / 268 ms -> 152 / 126 ms, worst 254 / 319 ->
+223 / 229 ms).
 
-The child loads the model, warms the preview path up and says it is ready; until then (and if it
-ever stops) previews run on the generation thread as before. It serves one request at a time:
+The child (`python -m app.engine_process FD [WARM_UP_STORYBOARD]`; a multiprocessing spawn would
+re-run the parent's main script, which a program started from a pipe or `-c` lacks) loads the
+model, warms the full and the preview path up and says it is ready; a run asked for before waits
+for it. It serves one run at a time:
 
-    parent -> child   ("preview", run, storyboard, settings) | ("cancel", run) | ("quit",)
-    child -> parent   ("ready",) | ("step", run, step, num_steps, t, phase) | ("done", run, result)
-                      | ("failed", run, exception) | ("cancelled", run)
+    parent -> child   ("run", run, storyboard, settings) | ("cancel", run) | ("quit",)
+    child -> parent   ("ready",) | ("step", run, step, num_steps, t, phase, energies, motion)
+                      | ("done", run, result) | ("failed", run, exception) | ("cancelled", run)
 
-A request or a cancel reaching the child mid-run stops it between steps. The child exits when the
-parent's end of the pipe closes, so a killed app leaves no process behind.
+A step's `motion` is decoded in the child for the steps the views are to show (at most one per
+STEP_INTERVAL_S, and the last; none of a live preview's: GenerationSettings.streams_steps), None
+for the rest, which come so that a cancel is seen between any two steps. A new run or a cancel
+reaching the child mid-run stops it between steps. The child exits when the parent's end of the
+socket closes, so a killed app leaves no process behind; a child that stopped is started again by
+the next run.
 """
 from __future__ import annotations
 
@@ -27,6 +31,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 import traceback
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -36,27 +41,30 @@ import numpy as np
 from engine.sampling.events import StepEvent
 from engine.storyboard import Storyboard
 
-from .generation import GenerationSettings, StepStream, start_generation, warm_up
+from .generation import STEP_INTERVAL_S, GenerationSettings, StepStream, start_generation, warm_up
 
 
-class PreviewProcess:
+class EngineProcess:
     def __init__(self, warm_up_storyboard: Path | None = None):
-        """Starts the child now; it loads the model (and warms up on `warm_up_storyboard`) in the
-        background. The app's first previews run on the generation thread meanwhile. The child is
-        `python -m app.preview_process`, not a multiprocessing spawn: that re-runs the parent's
-        main script, which a program started from a pipe or `-c` does not have."""
+        """Starts the child now: it loads the model (and warms up on `warm_up_storyboard`) while
+        the window opens."""
+        self._warm_up = warm_up_storyboard
         self._sending = threading.Lock()    # the GUI thread (close) and the generation thread send
-        self._ready = False
         self._run = 0
+        self._process: subprocess.Popen | None = None
+        self._start()
+
+    def _start(self) -> None:
+        self._ready = False
         ours, theirs = socket.socketpair()
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(__file__).parents[1]),
                                                                          os.environ.get("PYTHONPATH")]))}
         try:
             self._process = subprocess.Popen(
-                [sys.executable, "-m", "app.preview_process", str(theirs.fileno()), str(warm_up_storyboard or "")],
+                [sys.executable, "-m", "app.engine_process", str(theirs.fileno()), str(self._warm_up or "")],
                 pass_fds=[theirs.fileno()], env=env, stdin=subprocess.DEVNULL)
-        except OSError as e:   # no child: every preview runs here
-            print(f"the preview process did not start: {e}", file=sys.stderr)
+        except OSError as e:   # the run that needs it says so
+            print(f"the generation process did not start: {e}", file=sys.stderr)
             self._process = None
         theirs.close()
         self._conn = Connection(ours.detach())
@@ -67,7 +75,7 @@ class PreviewProcess:
 
     @property
     def ready(self) -> bool:
-        """The child is up and warmed up (read where runs start: until true no run uses the pipe)."""
+        """The child is up and warmed up (read where runs start: until it is, no run uses the socket)."""
         if not self._ready and self.alive:
             try:
                 self._ready = self._conn.poll() and self._conn.recv() == ("ready",)
@@ -76,37 +84,37 @@ class PreviewProcess:
         return self._ready and self.alive
 
     def generate(self, storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
-        """What the session runs: previews in the child once it is ready, the rest here."""
-        if settings.preview and self.ready:
-            return self._stream(storyboard, settings)
-        return start_generation(storyboard, settings)
-
-    def _stream(self, storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
-        """The child's run of the request as a stream of steps (not decoded: a preview hands none
-        to the GUI) ending with its result; closing it early cancels the run."""
+        """The child's run of the request (what the session runs): its steps, the motion of those
+        to show decoded, ending with its result; closing the stream early cancels the run."""
+        if not self.alive:            # it stopped (or never started): another, its model loaded anew
+            self._conn.close()
+            self._start()
+        while not self.ready:         # on the generation thread: the window goes on meanwhile
+            if not self.alive:
+                raise RuntimeError("the generation process stopped while it started (see the terminal)")
+            self._conn.poll(0.05)
         self._run += 1
         run, ended = self._run, False
-        self._send(("preview", run, storyboard, settings))
+        self._send(("run", run, storyboard, settings))
         try:
             while True:
                 try:
                     message = self._conn.recv()      # waits without the interpreter lock
                 except (EOFError, OSError):
                     ended = True
-                    raise RuntimeError("the preview process stopped") from None
+                    raise RuntimeError("the generation process stopped") from None
                 if message[1] != run:                # the last words of a run cancelled before
                     continue
                 kind = message[0]
                 if kind == "step":
-                    step, num_steps, t, phase = message[2:]
-                    yield StepEvent(step, num_steps, t, np.zeros(0), _not_decoded, phase)
+                    yield _step_event(*message[2:])
                     continue
                 ended = True
                 if kind == "done":
                     return message[2]
                 if kind == "failed":
                     raise message[2]
-                raise RuntimeError("the preview was cancelled in the preview process")
+                raise RuntimeError("the run was cancelled in the generation process")
         finally:
             if not ended:
                 self._send(("cancel", run))
@@ -130,15 +138,20 @@ class PreviewProcess:
         self._conn.close()
 
 
-def _not_decoded():
-    raise RuntimeError("a preview's steps are not decoded in the app: only its result comes back")
+def _step_event(step: int, num_steps: int, t: float, phase: np.ndarray, energies: dict, motion) -> StepEvent:
+    """A step from the child: its motion decoded there (and so handed to the views at once,
+    app.worker), or None (not to be shown)."""
+    event = StepEvent(step, num_steps, t, np.zeros(0), None if motion is None else (lambda: motion), phase, energies)
+    if motion is not None:
+        event.preview   # cached: the worker sees it decoded
+    return event
 
 
 def serve(conn, warm_up_storyboard: Path | None) -> None:
-    """The child's loop (conn: its end of the pipe). Returns on quit or when the app is gone."""
+    """The child's loop (conn: its end of the socket). Returns on quit or when the app is gone."""
     if warm_up_storyboard is not None:
-        # on one thread: the app warms its own model up at the same moment, on the other core
-        warm_up(warm_up_storyboard, GenerationSettings(preview=True, threads=1))
+        for settings in (GenerationSettings(steps=2), GenerationSettings(preview=True)):
+            warm_up(warm_up_storyboard, settings)
     try:
         conn.send(("ready",))
         waiting = None
@@ -147,16 +160,16 @@ def serve(conn, warm_up_storyboard: Path | None) -> None:
             waiting = None
             if message[0] == "quit":
                 return
-            if message[0] == "preview":
+            if message[0] == "run":
                 waiting = _run(conn, *message[1:])
     except (EOFError, OSError):
         return   # the app closed its end: it has quit or was killed
 
 
 def _run(conn, run: int, storyboard: Storyboard, settings: GenerationSettings) -> tuple | None:
-    """One request to its end, answered on conn; returns the message that stopped it, if one did
-    (a newer request, or quit: handled next)."""
-    stream = start_generation(storyboard, settings)
+    """One run to its end, answered on conn; returns the message that stopped it, if one did (a
+    newer run, or quit: handled next)."""
+    stream, shown = start_generation(storyboard, settings), -float("inf")
     try:
         while True:
             if conn.poll():
@@ -171,7 +184,10 @@ def _run(conn, run: int, storyboard: Storyboard, settings: GenerationSettings) -
             except StopIteration as stop:
                 conn.send(("done", run, stop.value))
                 return None
-            conn.send(("step", run, event.step, event.num_steps, event.t, event.phase))
+            motion, now = None, time.monotonic()
+            if settings.streams_steps and (now - shown >= STEP_INTERVAL_S or event.step == event.num_steps - 1):
+                motion, shown = event.preview, now
+            conn.send(("step", run, event.step, event.num_steps, event.t, event.phase, event.energies, motion))
     except (EOFError, OSError):
         raise                                        # the app is gone: serve returns
     except Exception as e:   # noqa: BLE001  the app reports it as its own run's failure, in one line
@@ -187,9 +203,8 @@ def _sendable(error: Exception) -> Exception:
         pickle.loads(pickle.dumps(error))
         return error
     except Exception:  # noqa: BLE001
-        print(f"preview failed: {type(error).__name__}: {error}", file=sys.stderr)
         return RuntimeError(f"{type(error).__name__}: {error}".splitlines()[0])
 
 
-if __name__ == "__main__":   # the child: python -m app.preview_process FD [WARM_UP_STORYBOARD]
+if __name__ == "__main__":   # the child: python -m app.engine_process FD [WARM_UP_STORYBOARD]
     serve(Connection(int(sys.argv[1])), Path(sys.argv[2]) if len(sys.argv) > 2 and sys.argv[2] else None)
