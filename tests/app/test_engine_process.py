@@ -166,3 +166,24 @@ def test_a_drag_in_the_window_is_previewed_and_generated_in_the_child(qtbot, mak
     qtbot.waitUntil(lambda: bool(window.doc.takes) and not window.session.running, timeout=60000)
     assert not asked[-1][1] and not window.doc.result_is_preview   # the release's full generation
     assert shown and all(np.isfinite(clip.joints).all() for clip in shown)   # its steps reached the views
+
+
+def test_the_window_process_never_loads_the_model(tmp_path):
+    script = textwrap.dedent(f"""
+        import sys
+        from PySide6.QtCore import QSettings
+        from PySide6.QtWidgets import QApplication
+        from app.examples import EXAMPLES_DIR
+        from app.mainwindow import MainWindow
+        app = QApplication([])
+        window = MainWindow(data_dir={str(tmp_path / "data")!r},
+                            settings=QSettings({str(tmp_path / "s.ini")!r}, QSettings.IniFormat))
+        window.show()
+        window.open_file(str(EXAMPLES_DIR / "box_handoff.json"))
+        app.processEvents()
+        print(sorted(m for m in sys.modules if m.split(".")[0] == "torch")[:3])
+    """)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parents[2]), "QT_QPA_PLATFORM": "offscreen"}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "[]"   # torch stays in the generation process
