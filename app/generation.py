@@ -35,7 +35,6 @@ class GenerationSettings:
     threads: int | None = None      # torch threads (None: the cores other programs leave free)
     reserve_cores: float = 0.0      # cores left to the viewport's drawing (software OpenGL)
 
-
     @property
     def streams_steps(self) -> bool:
         """Whether the run's steps are shown as it goes: a live preview's are not (its result

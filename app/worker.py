@@ -84,7 +84,7 @@ class GenerationWorker(QObject):
                 now = time.monotonic()
                 decoded = "preview" in vars(event)    # by the generation process, which chose it
                 if decoded or now - handed_over >= self._preview_interval_s or event.step == event.num_steps - 1:
-                    event.preview  # decoded here, in the worker, not on the GUI thread
+                    event.preview  # decoded (unless it came so) here, in the worker, not on the GUI thread
                     self._post(event)
                     handed_over = now
         except Exception as e:  # any sampler failure becomes a message; the document is untouched

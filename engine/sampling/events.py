@@ -21,7 +21,7 @@ class StepEvent:
     step: int                    # 0-based index of the finished solver step
     num_steps: int
     t: float                     # solver time after this step (1 = noise, 0 = data)
-    latent: np.ndarray           # (K, T_lat, V, d) current latent of all K variations
+    latent: np.ndarray           # (K, T_lat, V, d) current latent of all K variations (empty: from another process)
     decode: Callable[[], MotionClip] | None  # decodes the current motion, variation 0 (see preview);
                                              # None: not here (a step from another process not shown)
     phase: np.ndarray            # (N, 3) CTMC occupancy of approach / contact / carry per frame
