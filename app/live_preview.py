@@ -5,8 +5,9 @@ preview student (engine.models.preview); on release the full generation follows.
 Pointer moves arrive far faster than previews finish (~0.1 s each here), so they are coalesced:
 the first move of a burst starts a zero timer and, when it fires (the moves already queued
 handled), the newest dragged storyboard goes to the session, which lets a running preview finish
-while the drag goes on and runs only the newest request after it (GenerationSession.preview). The app runs them, as every generation, in a
-process of its own (app.engine_process), where the window's drawing does not slow them.
+while the drag goes on and runs only the newest request after it (GenerationSession.preview).
+The app runs them, as every generation, in a process of its own (app.engine_process), where the
+window's drawing does not slow them.
 """
 from __future__ import annotations
 

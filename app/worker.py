@@ -82,8 +82,8 @@ class GenerationWorker(QObject):
                 if self._preview_interval_s is None or event.decode is None:   # none, or not this one
                     continue
                 now = time.monotonic()
-                decoded = "preview" in vars(event)    # by the generation process, which chose it
-                if decoded or now - handed_over >= self._preview_interval_s or event.step == event.num_steps - 1:
+                # A step that comes decoded was chosen by the generation process: handed over as it comes.
+                if event.decoded or now - handed_over >= self._preview_interval_s or event.step == event.num_steps - 1:
                     event.preview  # decoded (unless it came so) here, in the worker, not on the GUI thread
                     self._post(event)
                     handed_over = now

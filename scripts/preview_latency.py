@@ -24,9 +24,9 @@ from PySide6.QtGui import QMouseEvent  # noqa: E402
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
 from app import commands as cmd  # noqa: E402
+from app.engine_process import EngineProcess  # noqa: E402
 from app.examples import EXAMPLES_DIR  # noqa: E402
 from app.mainwindow import MainWindow  # noqa: E402
-from app.engine_process import EngineProcess  # noqa: E402
 from engine.skeleton import JOINT_INDEX  # noqa: E402
 
 WRIST = JOINT_INDEX["r_wrist"]

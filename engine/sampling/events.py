@@ -34,6 +34,11 @@ class StepEvent:
         reads it before handing the event to the GUI."""
         return self.decode()
 
+    @property
+    def decoded(self) -> bool:
+        """Whether `preview` has been read already (here, or where the event was made)."""
+        return "preview" in self.__dict__
+
 
 @dataclass
 class GenerationResult:
