@@ -19,7 +19,8 @@ for it. It serves one run at a time:
 A step's `motion` is decoded in the child for the steps the views are to show (at most one per
 STEP_INTERVAL_S, and the last; none of a live preview's: GenerationSettings.streams_steps), None
 for the rest, which come so that a cancel is seen between any two steps. A new run or a cancel
-reaching the child mid-run stops it between steps. The child exits when the parent's end of the
+reaching the child mid-run stops it between steps, or between the stages of its finishing (a live
+preview's finishing is most of its time, and the pointer's last move waited for it). The child exits when the parent's end of the
 socket closes, so a killed app leaves no process behind; a child that stopped is started again by
 the next run.
 """
@@ -166,19 +167,27 @@ def serve(conn, warm_up_storyboard: Path | None) -> None:
         return   # the app closed its end: it has quit or was killed
 
 
+class _Stopped(Exception):
+    """A message that ends the run came: `message`, handled once the run is wound up."""
+
+    def __init__(self, message: tuple):
+        super().__init__(message[0])
+        self.message = message
+
+
 def _run(conn, run: int, storyboard: Storyboard, settings: GenerationSettings) -> tuple | None:
     """One run to its end, answered on conn; returns the message that stopped it, if one did (a
     newer run, or quit: handled next)."""
-    stream, shown = start_generation(storyboard, settings), -float("inf")
+    def checkpoint() -> None:   # between steps, and between the finishing's stages
+        while conn.poll():
+            message = conn.recv()
+            if message[0] != "cancel" or message[1] == run:   # else a cancel of a run already answered
+                raise _Stopped(message)
+
+    stream, shown = start_generation(storyboard, settings, checkpoint), -float("inf")
     try:
         while True:
-            if conn.poll():
-                message = conn.recv()
-                if message[0] != "cancel" or message[1] == run:
-                    stream.close()
-                    conn.send(("cancelled", run))
-                    return None if message[0] == "cancel" else message
-                continue                             # a cancel of a run already answered
+            checkpoint()
             try:
                 event = next(stream)
             except StopIteration as stop:
@@ -188,6 +197,10 @@ def _run(conn, run: int, storyboard: Storyboard, settings: GenerationSettings) -
             if settings.streams_steps and (now - shown >= STEP_INTERVAL_S or event.step == event.num_steps - 1):
                 motion, shown = event.preview, now
             conn.send(("step", run, event.step, event.num_steps, event.t, event.phase, event.energies, motion))
+    except _Stopped as stopped:
+        stream.close()
+        conn.send(("cancelled", run))
+        return None if stopped.message[0] == "cancel" else stopped.message
     except (EOFError, OSError):
         raise                                        # the app is gone: serve returns
     except Exception as e:   # noqa: BLE001  the app reports it as its own run's failure, in one line

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 import threading
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, fields, replace
 from functools import lru_cache
 from pathlib import Path
@@ -78,9 +78,11 @@ def _bundle():
         return _load_bundle()
 
 
-def start_generation(storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
+def start_generation(storyboard: Storyboard, settings: GenerationSettings,
+                     checkpoint: Callable[[], None] = lambda: None) -> StepStream:
     """Stream one generation. Nothing runs until the first next(), so the model loads on the
-    worker thread, never on the GUI thread; closing the generator cancels between steps."""
+    worker thread, never on the GUI thread; closing the generator cancels between steps, and
+    what `checkpoint` raises between the finishing's stages stops it there."""
     from engine.request import Request
     from engine.sampling.config import sampler_config
     from engine.sampling.sampler import sample
@@ -88,7 +90,7 @@ def start_generation(storyboard: Storyboard, settings: GenerationSettings) -> St
                             energy=settings.use_energy, ctmc=settings.use_ctmc, steady=settings.steady,
                             preview=settings.preview, threads=settings.threads, reserve_cores=settings.reserve_cores,
                             text_cfg=None if settings.text_cfg == settings.cfg else settings.text_cfg)
-    return (yield from sample(_bundle(), Request.build(drawn_cast(storyboard), config)))
+    return (yield from sample(_bundle(), Request.build(drawn_cast(storyboard), config), checkpoint))
 
 
 def drawn_cast(storyboard: Storyboard) -> Storyboard:

@@ -36,6 +36,7 @@ elbow and knee swivels, the hands pushed out of objects and the smoothing of 5 a
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
+from typing import Callable
 
 import numpy as np
 
@@ -131,8 +132,11 @@ def lasting_as_long(config, fps: float):
                               for name in config.DURATIONS for value in [getattr(config, name)]})
 
 
-def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig()) -> MotionClip:
-    """The clip (people in the storyboard's agent order) with its constraints made exact."""
+def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig(),
+           checkpoint: Callable[[], None] = lambda: None) -> MotionClip:
+    """The clip (people in the storyboard's agent order) with its constraints made exact.
+    `checkpoint` runs between the stages; what it raises stops the finishing (a live preview's
+    run made stale by the pointer's next move stops there, app.engine_process)."""
     config = replace(config, **{f.name: lasting_as_long(getattr(config, f.name), clip.fps) for f in fields(config)
                                 if hasattr(getattr(config, f.name), "DURATIONS")})
     if config.contacts:
@@ -140,40 +144,49 @@ def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = Fini
     joints = retime_to_keys(np.asarray(clip.joints, float), storyboard)
     storyboard = with_hold_ends(storyboard)
     joints, offsets = consistent_skeleton(joints, storyboard)
+    checkpoint()
     if config.keyposes:
         joints = warp_to_keyposes(joints, offsets, storyboard, config.warp)
+        checkpoint()
     if config.paths:
         joints = follow_paths(joints, storyboard, config.path, clip.fps)
+        checkpoint()
     if config.polish and config.contacts and clip.obj_pose is not None and storyboard.objects:   # before the feet plant
         joints = step_within_reach(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
     if config.feet:  # before the object: hands that hold it must not move after it is placed
         keys = key_frames(storyboard)   # the warp placed these poses: feet plant where they stand
         joints = lock_feet(settle_on_ground(joints, config.foot), clip.fps, config.foot, keys)
+        checkpoint()
     kw = {}
     if config.contacts and clip.obj_pose is not None and storyboard.objects:
         pose = hold_object(joints, np.asarray(clip.obj_pose, float), storyboard, config.contact)
+        checkpoint()
         if config.polish:
             joints = crouch_to_grips(joints, pose, storyboard, config.contact)
+            checkpoint()
         kw = dict(obj_pose=pose.astype(np.float32), obj_anchors=object_anchors(pose, storyboard).astype(np.float32))
     if config.contacts:
         joints = reach_contacts(joints, kw.get("obj_anchors"), storyboard, config.contact, kw.get("obj_pose"),
                                 swivel=config.polish)
+        checkpoint()
     obj_pose = kw["obj_pose"].astype(float) if config.contacts and "obj_pose" in kw else None
     if config.polish:
-        joints = _polished(joints, offsets, obj_pose, storyboard, config)
+        joints = _polished(joints, offsets, obj_pose, storyboard, config, checkpoint)
     rotations = inverse_kinematics(joints, offsets)
     return replace(clip, joints=joints.astype(np.float32), rot6d=matrix_to_6d(rotations).astype(np.float32),
                    bone_offsets=offsets.astype(np.float32), **kw)
 
 
 def _polished(joints: np.ndarray, offsets: np.ndarray, obj_pose: np.ndarray | None, storyboard: Storyboard,
-              config: FinishConfig) -> np.ndarray:
+              config: FinishConfig, checkpoint: Callable[[], None]) -> np.ndarray:
     """Hands, knees and feet out of the objects (obj_pose (N, O, 7) or None) and pops smoothed:
     joints (N, H, 22, 3)."""
     objects = None if obj_pose is None else (obj_pose, [o.spec for o in storyboard.objects])
     if objects is not None:
         joints = _cleared(joints, obj_pose, storyboard, config.contact)
+        checkpoint()
     joints = steady_body(steady_limbs(joints, config.limbs, objects), offsets, storyboard, config.steady)
+    checkpoint()
     if obj_pose is not None:
         # The steadying smooths the pops that a push out of an object makes, and so can put the
         # hand back in (a wrist 14 cm deep before its hold): pushed out again, steadied once more
@@ -185,6 +198,7 @@ def _polished(joints: np.ndarray, offsets: np.ndarray, obj_pose: np.ndarray | No
         pushed = np.flatnonzero(moved.any(axis=(0, 2)))
         if len(pushed):   # one smoothing is enough here (three: 8 ms more a clip, about as many pops)
             joints = steady_body(cleared, offsets, storyboard, replace(config.steady, passes=1), pushed, held=moved)
+            checkpoint()
     return _last_limb_pass(joints, config.last_limbs, objects)
 
 

@@ -7,6 +7,7 @@ the request's storyboard: its agents and objects, its frames and frame rate.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Callable
 
 import numpy as np
 import torch
@@ -83,16 +84,17 @@ class Output:
             clip = resample_clip(clip, sb.fps).slice(0, sb.length)
         return replace(clip, contact=_hand_contact(clip.joints, clip.obj_anchors, clip.phase)) if contact else clip
 
-    def final_clips(self, motion: dict[str, torch.Tensor], occupancy: torch.Tensor | None) -> list[MotionClip]:
-        """Every variation, through engine.finishing unless the config says not to, its hand
-        contacts measured on the result."""
+    def final_clips(self, motion: dict[str, torch.Tensor], occupancy: torch.Tensor | None,
+                    checkpoint: Callable[[], None] = lambda: None) -> list[MotionClip]:
+        """Every variation, through engine.finishing unless the config says not to (`checkpoint`
+        run between its stages), its hand contacts measured on the result."""
         finishing = self.config.finish
         clips = [self.clip(motion, k, self.phase(occupancy, k), contact=not finishing)
                  for k in range(motion["joints"].shape[0])]
         if not finishing:
             return clips
         config = FinishConfig(polish=self.config.polish)
-        finished = [finish(clip, self.storyboard, config) for clip in clips]
+        finished = [finish(clip, self.storyboard, config, checkpoint) for clip in clips]
         return [replace(c, contact=_hand_contact(c.joints, c.obj_anchors, c.phase)) for c in finished]
 
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import Generator, Protocol
+from typing import Callable, Generator, Protocol
 
 import torch
 
@@ -67,7 +67,11 @@ class Bundle(Protocol):
     surrogate: torch.nn.Module      # JacobianSurrogate
 
 
-def sample(bundle: Bundle, request: Request) -> Generator[StepEvent, None, GenerationResult]:
+def sample(bundle: Bundle, request: Request,
+           checkpoint: Callable[[], None] = lambda: None) -> Generator[StepEvent, None, GenerationResult]:
+    """The request's generation, a step at a time (closing the generator stops it between steps);
+    `checkpoint` runs between the stages of the finishing after the last step, and what it raises
+    stops the run there."""
     config = request.config
     if config.few_step and bundle.trained and not bundle.has_part("preview"):
         raise SamplerError("this model bundle has no preview student (train it: sketch2colab train preview)")
@@ -75,7 +79,7 @@ def sample(bundle: Bundle, request: Request) -> Generator[StepEvent, None, Gener
         raise SamplerError(f"this model bundle has no trained {config.student_part!r} (see scripts/train_baselines.sh)")
     threads = ThreadBudget(config.threads, config.reserve_cores)
     threads.adjust()
-    run = _Run(bundle, request)
+    run = _Run(bundle, request, checkpoint)
     with torch.no_grad():
         steps = run.student() if config.method == "student" else run.teacher()
         try:
@@ -93,8 +97,8 @@ def sample(bundle: Bundle, request: Request) -> Generator[StepEvent, None, Gener
 class _Run:
     """One generation's state: the conditioning, the planner's occupancy, the clock."""
 
-    def __init__(self, bundle: Bundle, request: Request):
-        self.bundle, self.cfg = bundle, request.config
+    def __init__(self, bundle: Bundle, request: Request, checkpoint: Callable[[], None]):
+        self.bundle, self.cfg, self.checkpoint = bundle, request.config, checkpoint
         self.start = time.perf_counter()
         self.clock = StageClock()
         self.first_step: float | None = None
@@ -141,10 +145,11 @@ class _Run:
                          phase=out.at_storyboard_rate(phase), energies=energies)
 
     def _result(self, z0: torch.Tensor) -> GenerationResult:
+        self.checkpoint()
         with self.clock("decode"):
             motion = self.decode(z0)
         with self.clock("finishing"):
-            clips = self.output.final_clips(motion, self.occupancy)
+            clips = self.output.final_clips(motion, self.occupancy, self.checkpoint)
         notes = missed_holds(clips[0], self.output.storyboard) if self.cfg.finish else []
         return GenerationResult(clips=clips, wall_time_s=time.perf_counter() - self.start,
                                 first_step_s=self.first_step or 0.0, network_evals=self.evals,

@@ -6,7 +6,9 @@ import os
 import subprocess
 import sys
 import textwrap
+import threading
 import time
+from multiprocessing import Pipe
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +16,7 @@ import pytest
 
 from app.examples import EXAMPLES_DIR
 from app.generation import GenerationSettings, start_generation
-from app.engine_process import EngineProcess
+from app.engine_process import EngineProcess, _run
 from engine.generate import run_generation
 from engine.sampling.config import SamplerError
 from engine.storyboard import Storyboard
@@ -80,6 +82,22 @@ def test_a_cancelled_run_never_answers_for_the_next(engine, storyboard):
     np.testing.assert_allclose(result.clips[0].joints, expected.clips[0].joints, atol=1e-4)
 
 
+@pytest.mark.parametrize("cancelled", [7, 6])
+def test_a_cancel_while_the_run_finishes_stops_it_there_unless_it_is_an_older_runs(storyboard, cancelled):
+    ours, theirs = Pipe()
+    settings = GenerationSettings(steps=2, use_energy=False, variations=3, threads=1)
+    child = threading.Thread(target=_run, args=(theirs, 7, storyboard, settings))
+    child.start()
+    while (message := ours.recv())[0] == "step" and message[2] < 1:
+        pass
+    assert message[:3] == ("step", 7, 1)             # the last step: the finishing follows
+    time.sleep(0.05)                                 # into it (3 clips, 0.15 s each on 2 cores)
+    ours.send(("cancel", cancelled))
+    answer = ours.recv()
+    child.join(60)
+    assert answer[:2] == (("cancelled", 7) if cancelled == 7 else ("done", 7))
+
+
 def test_a_failure_in_the_child_is_the_runs_own(engine, storyboard):
     with pytest.raises(SamplerError, match="variations must be at least 1"):
         run_generation(engine.generate(storyboard, GenerationSettings(preview=True, variations=0)))
@@ -105,7 +123,7 @@ def test_a_stopped_child_fails_its_run_and_the_next_run_starts_another(storyboar
 def test_a_killed_app_leaves_no_generation_process(tmp_path):
     script = textwrap.dedent("""
         import os, sys, time
-        from app.engine_process import EngineProcess
+        from app.engine_process import EngineProcess, _run
         if __name__ == "__main__":
             process = EngineProcess()
             print(process._process.pid, flush=True)

@@ -29,11 +29,11 @@ def storyboard():
     return Storyboard.load(EXAMPLE)
 
 
-def sample(bundle, storyboard, config):
+def sample(bundle, storyboard, config, checkpoint=lambda: None):
     """The sampler on a request built from the storyboard (raises when the first step is asked
     for, as a generator: the request is built inside it)."""
     yield from ()
-    return (yield from sample_request(bundle, Request.build(storyboard, config)))
+    return (yield from sample_request(bundle, Request.build(storyboard, config), checkpoint))
 
 
 def drain(gen):
@@ -75,6 +75,28 @@ def test_closing_cancels_between_steps(bundle, storyboard):
     assert first.step == 0
     with pytest.raises(StopIteration):
         next(gen)
+
+
+def test_a_checkpoint_that_raises_stops_the_finishing_after_the_last_step(bundle, storyboard):
+    calls = []
+    events, _ = drain(sample(bundle, storyboard, SamplerConfig(steps=2), lambda: calls.append(len(calls))))
+    stages = len(calls)
+    assert len(events) == 2 and stages >= 8          # before the decode, between the finishing's stages
+
+    class Stale(Exception):
+        pass
+
+    def stale():
+        if len(calls) == stages - 1:                 # the last stage is not run
+            raise Stale
+        calls.append(0)
+
+    calls.clear()
+    gen = sample(bundle, storyboard, SamplerConfig(steps=2), stale)
+    assert [next(gen).step for _ in range(2)] == [0, 1] and not calls   # none while stepping
+    with pytest.raises(Stale):
+        next(gen)
+    assert len(calls) == stages - 1
 
 
 def test_variations_are_one_batch_of_different_samples(bundle, storyboard):
