@@ -34,6 +34,7 @@ import sys
 import threading
 import time
 import traceback
+from collections.abc import Callable, Generator
 from multiprocessing.connection import Connection
 from pathlib import Path
 
@@ -84,9 +85,15 @@ class EngineProcess:
                 pass
         return self._ready and self.alive
 
-    def generate(self, storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
+    def generate(self, storyboard: Storyboard, settings: GenerationSettings) -> "RemoteStream":
         """The child's run of the request (what the session runs): its steps, the motion of those
-        to show decoded, ending with its result; closing the stream early cancels the run."""
+        to show decoded, ending with its result; closing the stream early, or its cancel(), cancels
+        the run."""
+        self._run += 1
+        run = self._run
+        return RemoteStream(self._answers(run, storyboard, settings), lambda: self._send(("cancel", run)))
+
+    def _answers(self, run: int, storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
         if not self.alive:            # it stopped (or never started): another, its model loaded anew
             self._conn.close()
             self._start()
@@ -94,8 +101,7 @@ class EngineProcess:
             if not self.alive:
                 raise RuntimeError("the generation process stopped while it started (see the terminal)")
             self._conn.poll(0.05)
-        self._run += 1
-        run, ended = self._run, False
+        ended = False
         self._send(("run", run, storyboard, settings))
         try:
             while True:
@@ -137,6 +143,21 @@ class EngineProcess:
                 self._process.kill()
                 self._process.wait(timeout_s)
         self._conn.close()
+
+
+class RemoteStream(Generator):
+    """A run in the child as a StepStream that can also be cancelled from another thread while
+    its own waits for the child (cancel(), thread-safe): the child stops at its next step or
+    finishing stage and the stream ends in a RuntimeError. Closing it cancels as well."""
+
+    def __init__(self, answers: StepStream, cancel: Callable[[], None]):
+        self._answers, self.cancel = answers, cancel
+
+    def send(self, value):
+        return self._answers.send(value)
+
+    def throw(self, *error):
+        return self._answers.throw(*error)
 
 
 def _step_event(step: int, num_steps: int, t: float, phase: np.ndarray, energies: dict, motion) -> StepEvent:

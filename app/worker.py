@@ -12,7 +12,7 @@ second, 1.0-1.2 s with none), so the worker hands over at most one step per `pre
 (10 a second: a 1 s generation still looks live) and always the last. A live preview hands over
 none (GenerationSettings.streams_steps).
 Cancel sets a flag the worker checks between steps; it then closes the generator, which cancels
-the sampler.
+the sampler. A stream that can be told at once (the generation process') is told too.
 """
 from __future__ import annotations
 
@@ -42,10 +42,16 @@ class GenerationWorker(QObject):
         self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._latest: StepEvent | None = None
+        self._stream: StepStream | None = None
 
     def cancel(self) -> None:
-        """Thread-safe; the worker stops before its next step."""
+        """Thread-safe; the worker stops before its next step, or sooner where the stream can be
+        told at once (app.engine_process.RemoteStream: the child stops between the stages of its
+        finishing, which is most of a live preview's time)."""
         self._cancel.set()
+        tell = getattr(self._stream, "cancel", None)
+        if tell is not None:
+            tell()
 
     @property
     def cancel_requested(self) -> bool:
@@ -67,7 +73,7 @@ class GenerationWorker(QObject):
     def run(self) -> None:
         stream, handed_over = None, -float("inf")
         try:
-            stream = self._make_stream()
+            stream = self._stream = self._make_stream()
             while True:
                 if self._cancel.is_set():
                     stream.close()
@@ -88,9 +94,12 @@ class GenerationWorker(QObject):
                     self._post(event)
                     handed_over = now
         except Exception as e:  # any sampler failure becomes a message; the document is untouched
-            traceback.print_exc()
             if stream is not None:
                 stream.close()
+            if self._cancel.is_set():     # the stream was told to stop, and did so
+                self.cancelled.emit()
+                return
+            traceback.print_exc()
             self.failed.emit(f"{type(e).__name__}: {e}".splitlines()[0])
 
 

@@ -98,6 +98,16 @@ def test_a_cancel_while_the_run_finishes_stops_it_there_unless_it_is_an_older_ru
     assert answer[:2] == (("cancelled", 7) if cancelled == 7 else ("done", 7))
 
 
+def test_a_cancel_from_another_thread_stops_the_run_while_its_stream_waits(engine, storyboard):
+    settings = GenerationSettings(steps=2, use_energy=False, variations=3, threads=1)
+    stream = engine.generate(storyboard, settings)
+    assert [next(stream).step for _ in range(2)] == [0, 1]   # the child finishes 3 clips now
+    threading.Timer(0.05, stream.cancel).start()
+    with pytest.raises(RuntimeError, match="cancelled"):
+        next(stream)
+    assert run_generation(engine.generate(storyboard, PREVIEW)).clips   # and it serves the next
+
+
 def test_a_failure_in_the_child_is_the_runs_own(engine, storyboard):
     with pytest.raises(SamplerError, match="variations must be at least 1"):
         run_generation(engine.generate(storyboard, GenerationSettings(preview=True, variations=0)))

@@ -26,7 +26,7 @@ def test_a_solo_scene_in_a_new_document_asks_for_its_one_person(monkeypatch):
     import engine.sampling.sampler
     asked = []
 
-    def sample(bundle, request):
+    def sample(bundle, request, checkpoint):
         asked.append(request)
         yield from ()
 

@@ -289,7 +289,7 @@ def test_the_steady_checkbox_reaches_the_sampler(make_window, monkeypatch):
     assert window.doc.settings.steady
     seen = []
 
-    def record(bundle, request):
+    def record(bundle, request, checkpoint):
         seen.append(request.config)
         return None
         yield
@@ -549,7 +549,7 @@ def test_the_text_weight_is_typed_and_reaches_the_sampler(qtbot, make_window, mo
     window = make_window()
     seen = []
 
-    def record(bundle, request):
+    def record(bundle, request, checkpoint):
         seen.append(request.config.text_cfg)
         return None
         yield
