@@ -62,7 +62,11 @@ class SteadyConfig:
     pass_gain: float = 0.002     # m; after the first, a smoothing that lowers a stretch's pop less is not taken
     spread: int = 2              # frames either side of a pop that are smoothed with it
     still: float = 0.004         # m a frame; a joint moving less to and from a frame is held there
-    floor: float = 0.06          # m; a foot lower than this is held (it is planting or lifting)
+    floor: float = 0.05          # m; a foot lower than this is held (planting or lifting: the height under
+                                 # which FootSkate counts a foot planted). At 0.06 a foot's lift off the floor
+                                 # was held and jolted the next frame by 5-7 cm: artist_check's 3 x 100
+                                 # storyboards (drawings 0-2) within 5 cm of pops 264 -> 273, skating within 3%
+                                 # 294 -> 293 (mean 0.44 -> 0.51% of frames); at 0.045, 279 but 0.72% skating
     plant_slide: float = 0.015   # m a foot on the floor may slide, or a hand leave its grip, in the first or
                                  # last frame of its plant or hold (the last pass; a foot 3 cm: pops within
                                  # 5 cm 88 -> 90 of 100, but skating in over 3% of their frames 1 -> 3)

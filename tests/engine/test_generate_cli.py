@@ -45,7 +45,7 @@ def test_a_saved_storyboard_generates_the_identical_motion(tmp_path):
     sb.save(tmp_path / "nudged.json")
     again = Storyboard.load(tmp_path / "nudged.json")
     assert all(np.array_equal(a.points, b.points) for a, b in zip(sb.trajectories, again.trajectories))
-    config = sampler_config(steps=3, seed=5)
+    config = sampler_config(steps=3, seed=5, threads=1)   # the thread count chosen by load changes the sums' order
     first, second = (generate(s, config, quiet=True).clips[0].joints for s in (sb, again))
     assert np.array_equal(first, second)
 
