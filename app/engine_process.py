@@ -19,10 +19,10 @@ for it. It serves one run at a time:
 A step's `motion` is decoded in the child for the steps the views are to show (at most one per
 STEP_INTERVAL_S, and the last; none of a live preview's: GenerationSettings.streams_steps), None
 for the rest, which come so that a cancel is seen between any two steps. A new run or a cancel
-reaching the child mid-run stops it between steps, or between the stages of its finishing (a live
-preview's finishing is most of its time, and the pointer's last move waited for it). The child exits when the parent's end of the
-socket closes, so a killed app leaves no process behind; a child that stopped is started again by
-the next run.
+reaching the child mid-run stops it between steps, or between the stages of its finishing (half a
+full generation's time: a drag begun just after a release waited for it). The child exits when the
+parent's end of the socket closes, so a killed app leaves no process behind; a child that stopped
+is started again by the next run.
 """
 from __future__ import annotations
 

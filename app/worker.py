@@ -47,7 +47,7 @@ class GenerationWorker(QObject):
     def cancel(self) -> None:
         """Thread-safe; the worker stops before its next step, or sooner where the stream can be
         told at once (app.engine_process.RemoteStream: the child stops between the stages of its
-        finishing, which is most of a live preview's time)."""
+        finishing, during which the worker waits inside next())."""
         self._cancel.set()
         tell = getattr(self._stream, "cancel", None)
         if tell is not None:

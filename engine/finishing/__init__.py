@@ -135,8 +135,8 @@ def lasting_as_long(config, fps: float):
 def finish(clip: MotionClip, storyboard: Storyboard, config: FinishConfig = FinishConfig(),
            checkpoint: Callable[[], None] = lambda: None) -> MotionClip:
     """The clip (people in the storyboard's agent order) with its constraints made exact.
-    `checkpoint` runs between the stages; what it raises stops the finishing (a live preview's
-    run made stale by the pointer's next move stops there, app.engine_process)."""
+    `checkpoint` runs between the stages; what it raises stops the finishing (a run cancelled in
+    the app's generation process stops there, app.engine_process)."""
     config = replace(config, **{f.name: lasting_as_long(getattr(config, f.name), clip.fps) for f in fields(config)
                                 if hasattr(getattr(config, f.name), "DURATIONS")})
     if config.contacts:
