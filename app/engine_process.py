@@ -91,9 +91,14 @@ class EngineProcess:
         the run."""
         self._run += 1
         run = self._run
-        return RemoteStream(self._answers(run, storyboard, settings), lambda: self._send(("cancel", run)))
 
-    def _answers(self, run: int, storyboard: Storyboard, settings: GenerationSettings) -> StepStream:
+        def cancel() -> None:
+            self._send(("cancel", run))
+
+        return RemoteStream(self._answers(run, storyboard, settings, cancel), cancel)
+
+    def _answers(self, run: int, storyboard: Storyboard, settings: GenerationSettings,
+                 cancel: Callable[[], None]) -> StepStream:
         if not self.alive:            # it stopped (or never started): another, its model loaded anew
             self._conn.close()
             self._start()
@@ -124,7 +129,7 @@ class EngineProcess:
                 raise RuntimeError("the run was cancelled in the generation process")
         finally:
             if not ended:
-                self._send(("cancel", run))
+                cancel()
 
     def _send(self, message: tuple) -> None:
         with self._sending:
