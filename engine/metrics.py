@@ -223,7 +223,7 @@ def adherence(clip, storyboard, reference=None) -> dict[str, float]:
     Pelvis are the mean distances of all joints and of the pelvis to it); fail@0.2 / fail@0.5
     (this sequence's 0/1 failure flags on the 3D errors, or the 2D ones without a reference;
     their mean over sequences is the failure rate); Obj2D (projected object centre vs the
-    sketched silhouette centre and object path); Anc; Pen and Pen>4cm; FootSkate and
+    sketched silhouette centre, its base's distance to the object path's polyline, as T2D); Anc; Pen and Pen>4cm; FootSkate and
     FootSkate@5; ContactF1, ECE, Brier (the clip's CTMC contact + carry occupancy vs the
     frames with a storyboard contact)."""
     from .controls import build_controls
@@ -261,9 +261,11 @@ def adherence(clip, storyboard, reference=None) -> dict[str, float]:
         if targeted.any():
             lift = np.array([[0.0, s.size[1] / 2, 0.0] for s in specs])
             centre = local_to_world(lift[None, :, None], obj_pose)[..., 0, :]      # (N, O, 3)
-            uv = cam.project(centre)
-            put("Obj2D", np.concatenate([np.linalg.norm(uv - c.obj2d[..., :2], axis=-1)[c.obj_mask],
-                                         np.linalg.norm(uv - c.objpath2d, axis=-1)[c.objpath_mask]]))
+            base = cam.project(obj_pose[..., :3])                                   # what a path traces
+            put("Obj2D", np.concatenate(
+                [np.linalg.norm(cam.project(centre) - c.obj2d[..., :2], axis=-1)[c.obj_mask]]
+                + [point_polyline_distance(base[p.start:p.end + 1, storyboard.object_index(p.object)], p.points)
+                   for p in storyboard.object_paths]))
             if reference is not None and reference.obj_pose is not None:
                 out["Obj"] = object_position_error(obj_pose, np.asarray(reference.obj_pose, float)[..., :3],
                                                    targeted)

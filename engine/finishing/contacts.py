@@ -31,7 +31,8 @@ class ContactConfig:
                                             "reach_smoothing", "frames_per_metre", "swivel_sigma", "clear_frames",
                                             "sunk_frames", "held_clear_frames", "crouch_frames_per_metre",
                                             "lean_frames_per_radian", "crouch_sigma", "lean_sigma",
-                                            "key_ease_frames", "step_ease_frames", "knee_ease_frames")
+                                            "key_ease_frames", "step_ease_frames", "knee_ease_frames",
+                                            "drawn_falloff", "path_smoothing")
     blend_frames: int = 6          # frames a hand eases onto its grip before a span and off after it
     sunk_frames: int = 18          # frames before (after) a span within which a hand inside the object holds on
     handover_pop: float = 0.02     # m a grip may spike where a held object eases out the turn that a hand
@@ -39,6 +40,8 @@ class ContactConfig:
     lift_frames: int = 6           # frames a resting object eases into the holding hands' fit (and,
                                    # at least, a released one slides to its sketched landing place)
     smooth_sigma: float = 1.5      # frames: Gaussian smoothing of a held object's fitted path
+    drawn_falloff: int = 12        # frames over which a held object's move onto its drawn outline fades (held.py)
+    path_smoothing: float = 2.0    # frames; Gaussian sigma of a held object's move onto its drawn path (held.py)
     rest_height: float = 0.0       # m the base of a resting object sits above the ground
     hand_gap: float = 0.09         # m between two clasped wrists (the synthesizer's handshake grip)
     min_spread: float = 1e-4       # m^2: grip spread below which the yaw fit is undefined (one hand)

@@ -2,14 +2,14 @@
 
 `hold_object` rebuilds each object's pose from the storyboard's contacts and the finished
 joints (N frames, H people, 22 joints, world metres, Y up): an upright yaw + translation fit of
-its grips to the holding wrists, turning with the holder's chest while one person alone holds
-it, eased where hands join or leave the hold, at a height every holder's arm reaches and
-moved across towards a holder it is beyond the reach of, out of the holders' bodies, and lowered
-onto the ground as it is let go; resting on the ground before, between and after holds, where
-the sketch puts it (holds a few frames from
-each other or from the clip's ends are one, where the sketch does not put it down: an artist's
-spans are a few frames off), slid along the ground out of the legs of people who stand in it.
-contacts.py then puts the hands on its grips.
+its grips to the holding wrists, onto its drawn path and outlines (drawn_holds.py), turning with
+the holder's chest while one person alone holds it, eased where hands join or leave the hold, at
+a height every holder's arm reaches and moved across towards a holder it is beyond the reach of,
+out of the holders' bodies, and lowered onto the ground as it is let go; resting on the ground
+before, between and after holds, where the sketch puts it (holds a few frames from each other or
+from the clip's ends are one, where the sketch does not put it down: an artist's spans are a few
+frames off), slid along the ground out of the legs of people who stand in it. contacts.py then
+puts the hands on its grips.
 
 `step_within_reach` comes first: it moves a holder whose grip is beyond arm's reach towards it
 (two people carrying one box drift apart along their timing-free paths; an arm cannot close
@@ -33,6 +33,7 @@ from ..synth.reach import heading_of, wrap_angle, yaw_matrix
 from ..synth.trajectory import smoothstep
 from .blend import ease_frames, ease_jumps, eased_push
 from .contacts import ContactConfig, anchor_table, arm_lengths, forward_of, object_anchors, span_weight
+from .drawn_holds import onto_drawing
 from .keys import room_from_keys
 
 _ARM = [*ELBOWS, *HANDS]
@@ -176,9 +177,7 @@ def _rest_clear_of_people(pose: np.ndarray, joints: np.ndarray, grips: np.ndarra
         move = _within_holders_reach(move, pose[start], holds, joints, grips, held, config)
         weight = np.clip(np.minimum(frames - (start - k), end + k - frames) / k, 0.0, 1.0)   # 1 over the stretch
         shift += smoothstep(weight)[:, None] * move
-    out = pose.copy()
-    out[:, :3] += shift
-    return out
+    return np.concatenate([pose[:, :3] + shift, pose[:, 3:]], axis=1)
 
 
 def _within_vertical_reach(height: np.ndarray, joints: np.ndarray, grips: np.ndarray, held: np.ndarray,
@@ -295,10 +294,13 @@ def _eased_handovers(yaw: np.ndarray, held: np.ndarray, grips: np.ndarray, confi
 
 def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
               spec: ObjectSpec, config: ContactConfig, rests: list[np.ndarray | None],
-              camera: StoryboardCamera) -> np.ndarray:
+              camera: StoryboardCamera, drawn: dict[int, np.ndarray],
+              paths: list[tuple[int, int, np.ndarray]]) -> np.ndarray:
     """One object's pose (N, 7) from joints (N, H, 22, 3), the local grip each hand holds
-    (N, 2H, 3) where held (N, 2H), the decoded pose (N, 7) and its sketched resting places, one
-    (or None) per gap around the hold spans (see hold_object), drawn through `camera`."""
+    (N, 2H, 3) where held (N, 2H), the decoded pose (N, 7), its sketched resting places, one
+    (or None) per gap around the hold spans (see hold_object), the centres of its outlines at
+    key frames (frame -> (2,)) and its paths ((start, end, points (L, 2)) each), drawn through
+    `camera`."""
     n, h = joints.shape[:2]
     wrists = joints[:, :, list(HANDS)].reshape(n, 2 * h, 3)
     decoded_yaw = _yaw_of(decoded[:, 3:])
@@ -314,7 +316,8 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     fit_yaw = _carried_forward(fit_yaw, defined) if defined.any() else np.full(n, still_yaw)
     holding = held.reshape(n, h, 2).any(axis=-1)                                 # (N, H)
     fit_yaw = _carried_yaw(fit_yaw, joints, holding, config.smooth_sigma)
-    fit_pos = _fit_position(wrists, grips, held, fit_yaw)
+    fit_pos = onto_drawing(_fit_position(wrists, grips, held, fit_yaw), fit_yaw, joints, grips, held, spans, drawn,
+                           paths, spec, camera, config)
     fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
     fit_pos = _within_reach_across(fit_pos, fit_yaw, joints, grips, held, config)
     fit_pos = _clear_of_people(fit_pos, fit_yaw, spec, joints, holding, config.clear_iterations,
@@ -407,8 +410,12 @@ def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
             grips[c.start:c.end + 1, hand] = table[o, c.anchor]
         bounds = [-1, *(f for span in true_spans(held.any(axis=1)) for f in span), n]   # gaps between the spans
         rests = [sketched_rest(storyboard, o, a + 1, b - 1) for a, b in zip(bounds[::2], bounds[1::2])]
+        obj = storyboard.objects[o].id
+        drawn = {k.frame: (k.outline.min(axis=0) + k.outline.max(axis=0)) / 2
+                 for k in storyboard.object_keys if k.object == obj}
+        paths = [(p.start, p.end, p.points) for p in storyboard.object_paths if p.object == obj]
         out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
-                              config, rests, storyboard.camera)
+                              config, rests, storyboard.camera, drawn, paths)
     return out
 
 

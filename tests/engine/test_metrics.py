@@ -8,7 +8,7 @@ from engine.clip import MotionClip
 from engine.geometry.polylines import point_polyline_distance
 from engine.objects import ObjectSpec
 from engine.skeleton import JOINT_INDEX, rest_pose
-from engine.storyboard import Agent, Contact, Keypose, SceneObject, Storyboard, Trajectory
+from engine.storyboard import Agent, Contact, Keypose, ObjectKey, ObjectPath, SceneObject, Storyboard, Trajectory
 
 N = 30
 WRIST = JOINT_INDEX["l_wrist"]
@@ -121,6 +121,29 @@ def test_anchor_and_object_errors():
     mask = np.zeros((N, 1), bool)
     mask[::3] = True
     assert M.object_position_error(pose, target, mask) == pytest.approx(0.25)
+
+
+def test_object_2d_is_the_centre_at_keys_and_the_base_on_the_path():
+    """A box that rests, then slides along x: its keys' outlines drawn round its middle and its
+    path through its base (as engine.sketchify traces them) are met exactly, however unevenly
+    it goes along the path (a path has no timing, as T2D); a path through its middle is off by
+    the projected half height."""
+    spec, cam = ObjectSpec("box"), Storyboard().camera
+    pose = np.zeros((N, 1, 7))
+    pose[..., 3] = 1.0
+    pose[N // 2:, 0, 0] = np.linspace(0.0, 1.0, N - N // 2)
+    base = cam.project(pose[:, 0, :3])
+    centre = cam.project(pose[:, 0, :3] + (0.0, spec.size[1] / 2, 0.0))
+    outline = centre[10] + np.array([[-0.1, -0.1], [0.1, -0.1], [0.1, 0.1], [-0.1, 0.1]])
+
+    def obj_2d(path: np.ndarray) -> float:
+        sb = storyboard(object_keys=[ObjectKey("box", 10, outline)], object_paths=[ObjectPath("box", 0, N - 1, path)])
+        sb.objects.append(SceneObject("box", spec))
+        return M.adherence(clip(people(), obj_pose=pose), sb)["Obj2D"]
+
+    assert obj_2d(base[[0, -1]]) == pytest.approx(0.0, abs=1e-6)
+    off = point_polyline_distance(base, centre[[0, -1]])
+    assert off.min() > 0.1 and obj_2d(centre[[0, -1]]) == pytest.approx(off.sum() / (N + 1), rel=1e-4)
 
 
 def test_contact_f1():

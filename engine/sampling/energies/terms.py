@@ -170,20 +170,22 @@ def trajectory_energy(motion: dict[str, Tensor], ctx: EnergyContext, occupancy: 
 def _object_constants(ctx: EnergyContext) -> SimpleNamespace:
     """Object energy constants: targets (B, N, O, 2, 2) (silhouette centre at keys, path point)
     and weights (B, N, O, 2, 1) (key, path masks over the number of constraints); `any` is False
-    when nothing constrains an object, half_height (O, 1): the object centre above its pose."""
+    when nothing constrains an object, lift (O, 2, 1): how far above its pose each target's point
+    is, half the object's height for the silhouette's centre, none for the path's base."""
     key, path = ctx.obj_mask.to(ctx.obj2d.dtype), ctx.objpath_mask.to(ctx.obj2d.dtype)
     weights = torch.stack([key, path], -1)
     count = weights.sum((1, 2, 3))
     return SimpleNamespace(targets=torch.stack([ctx.obj2d[..., :2], ctx.objpath2d], -2),
                            weights=(weights / count.clamp_min(1.0)[:, None, None, None])[..., None],
                            any=bool(count.any()),
-                           half_height=ctx.obj2d.new_tensor([[spec.size[1] / 2] for spec in ctx.objects]))
+                           lift=ctx.obj2d.new_tensor([[[spec.size[1] / 2], [0.0]] for spec in ctx.objects]))
 
 
 def object_energy(motion: dict[str, Tensor], ctx: EnergyContext, occupancy: Tensor | None = None) -> Tensor:
     """Projected object centre (the middle of its bounding box) vs the sketched silhouette's
-    centre at object keys and vs the object path on its frames; per constrained (frame, object).
-    -> (B,)"""
+    centre at object keys, and its base (the pose's origin, which an object path traces:
+    engine.sketchify, docs/storyboard.md) vs the path on its frames; per constrained (frame,
+    object). -> (B,)"""
     pose = motion.get("obj_pose")
     b = motion["joints"].shape[0]
     if pose is None or not ctx.objects:
@@ -192,8 +194,8 @@ def object_energy(motion: dict[str, Tensor], ctx: EnergyContext, occupancy: Tens
     if not c.any:
         return motion["joints"].new_zeros(b)
     up = quat_to_matrix(pose[..., 3:])[..., 1]                              # (B, N, O, 3) rotated y axis
-    uv = project(torch.addcmul(pose[..., :3], up, c.half_height), ctx)      # (B, N, O, 2)
-    err = uv[..., None, :] - c.targets                                      # (B, N, O, 2, 2)
+    points = pose[..., None, :3] + up[..., None, :] * c.lift                # (B, N, O, 2, 3) centre, base
+    err = project(points, ctx) - c.targets                                  # (B, N, O, 2, 2)
     return (err * err * c.weights).sum((1, 2, 3, 4))
 
 

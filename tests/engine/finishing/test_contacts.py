@@ -9,8 +9,9 @@ import pytest
 from engine.body import body_points
 from engine.controls import build_controls
 from engine.finishing.blend import spike
-from engine.finishing.contacts import ContactConfig, object_anchors, reach_contacts
+from engine.finishing.contacts import ContactConfig, arm_lengths, object_anchors, reach_contacts
 from engine.finishing.held import BODY_SPHERES, _within_holders_reach, _within_reach_across, _yaw_of, hold_object, step_within_reach
+from engine.geometry.polylines import point_polyline_distance
 from engine.metrics import anchor_error
 from engine.objects import ObjectSpec, world_to_local
 from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
@@ -523,3 +524,71 @@ def test_a_holder_inside_the_object_steps_back_out_of_it_but_not_off_a_keyframe(
     assert far.any() and inside(joints)[far].max() > 0.05
     assert inside(out)[far].max() < 0.02                                 # unmoved: 7.6 cm
     np.testing.assert_allclose(out[keys_b, 1], joints[keys_b, 1])        # the sketch says where B stands
+
+
+def test_a_held_object_goes_where_its_outline_is_drawn():
+    """An outline drawn within a hold 6 cm above where the carriers hold the canister: it goes
+    there at that frame (its centre on the outline's) and eases back within drawn_falloff frames
+    after it; the hands follow it (reach_contacts)."""
+    clip = synthesize("carry_together", 3, fps=20)
+    sb = sketchify(clip, 4, 0.0, 3)
+    config = ContactConfig()
+    span = max(((c.start, c.end) for c in sb.contacts), key=lambda s: s[1] - s[0])
+    frame = (span[0] + span[1]) // 2
+    size = sb.objects[0].spec.size
+
+    def centre_seen(pose):   # (N, 1, 7) -> the centre's sketch point (N, 2)
+        return sb.camera.project(pose[:, 0, :3] + (0.0, size[1] / 2, 0.0))
+
+    before = hold_object(clip.joints, clip.obj_pose, sb, config)
+    drawn = centre_seen(before)[frame] + (0.0, 0.06)
+    outlined = replace(sb, object_keys=sb.object_keys + [ObjectKey(sb.objects[0].id, frame, drawn + np.array(
+        [[-0.2, -0.15], [0.2, -0.15], [0.2, 0.15], [-0.2, 0.15]]))])
+    after = hold_object(clip.joints, clip.obj_pose, outlined, config)
+    np.testing.assert_allclose(centre_seen(after)[frame], drawn, atol=0.01)
+    beyond = np.arange(sb.length) > frame + config.drawn_falloff + 6   # (before it, the move eases from the key
+    np.testing.assert_allclose(after[beyond], before[beyond], atol=1e-6)   # the hold begins at)
+    anchors = object_anchors(after, outlined)
+    assert anchor_error(reach_contacts(clip.joints.astype(float), anchors, outlined, config), anchors,
+                        build_controls(outlined).contact_anchor) < 0.01
+
+
+def test_a_held_object_goes_towards_its_outline_only_as_far_as_its_holders_reach():
+    """The outline drawn 40 cm off the carriers' line, beyond their arms: the canister moves
+    towards it, but no held grip goes further beyond its holder's reach than it was."""
+    clip = synthesize("carry_together", 3, fps=20)
+    sb = sketchify(clip, 4, 0.0, 3)
+    config = ContactConfig()
+    span = max(((c.start, c.end) for c in sb.contacts), key=lambda s: s[1] - s[0])
+    frame = (span[0] + span[1]) // 2
+    joints = clip.joints.astype(float)
+    before = hold_object(joints, clip.obj_pose, sb, config)
+    drawn = sb.camera.project(before[frame, 0, :3]) + (0.4, 0.0)
+    outlined = replace(sb, object_keys=sb.object_keys + [ObjectKey(sb.objects[0].id, frame, drawn + np.array(
+        [[-0.2, -0.15], [0.2, -0.15], [0.2, 0.15], [-0.2, 0.15]]))])
+    after = hold_object(joints, clip.obj_pose, outlined, config)
+    moved = sb.camera.project(after[frame, 0, :3]) - sb.camera.project(before[frame, 0, :3])
+    assert 0.0 < moved[0] < 0.3
+
+    def beyond_reach(pose):   # how far each held grip lies beyond `reach` of its holder's arm (N, contacts)
+        anchors, arms = object_anchors(pose, sb)[:, 0], arm_lengths(joints)
+        return np.stack([np.linalg.norm(anchors[:, c.anchor] - joints[:, sb.agent_index(c.agent), ARMS[int(c.hand == "right")][0]],
+                                        axis=-1) - config.reach * arms[:, sb.agent_index(c.agent), int(c.hand == "right")]
+                         for c in sb.contacts], 1)[span[0]:span[1] + 1]
+    assert np.all(beyond_reach(after) <= np.maximum(beyond_reach(before), 0.0) + 0.005)
+
+
+def test_a_held_object_follows_its_drawn_path():
+    """The object's path drawn 5 cm above where the carriers hold the canister: while it is
+    carried, well inside the hold, its base is on the path (which says where, not when)."""
+    clip = synthesize("carry_together", 3, fps=20)
+    sb = sketchify(clip, 4, 0.0, 3)
+    span = max(((c.start, c.end) for c in sb.contacts), key=lambda s: s[1] - s[0])
+    inside = np.arange(span[0] + 15, span[1] - 15)
+    before = hold_object(clip.joints, clip.obj_pose, sb)
+    seen = sb.camera.project(before[:, 0, :3])
+    path = replace(sb.object_paths[0], start=0, end=sb.length - 1, points=seen + (0.0, 0.05))
+    after = hold_object(clip.joints, clip.obj_pose, replace(sb, object_keys=[], object_paths=[path]))
+    off = point_polyline_distance(sb.camera.project(after[inside, 0, :3]), path.points)
+    assert point_polyline_distance(seen[inside], path.points).mean() > 0.04
+    assert off.mean() < 0.01 and off.max() < 0.03   # (the reach bands after it keep some of the gait's bob)

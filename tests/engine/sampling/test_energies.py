@@ -11,7 +11,7 @@ from engine.sampling import energies as E
 from engine.sampling.energies.context import _EPS
 from engine.sampling.energies.geometry import _invalid_bias, _soft_segments_sq_distance
 from engine.skeleton import FEET, HANDS, JOINT_INDEX, rest_pose
-from engine.storyboard import Agent, Contact, Keypose, ObjectPath, SceneObject, Storyboard, Trajectory
+from engine.storyboard import Agent, Contact, Keypose, ObjectKey, ObjectPath, SceneObject, Storyboard, Trajectory
 
 torch.set_num_threads(1)
 N = 40
@@ -185,6 +185,22 @@ def test_no_constraints_give_zero():
     ctx = context(storyboard())
     for name in ("keyframe", "trajectory", "object", "contact", "hand_contact", "penetration"):
         assert float(E.ENERGIES[name](m, ctx)) == 0.0, name
+
+
+def test_object_path_is_the_base_and_a_key_the_silhouette_centre():
+    """An object path traces the object's base (engine.sketchify), an object key's outline its
+    middle: both met give no energy, the path put through the centre does."""
+    m = motion(box_at=(0.2, 0.0, 0.5))
+    cam, spec = Storyboard().camera, ObjectSpec("box")
+    base = cam.project(m["obj_pose"][0, :, 0, :3].numpy())                     # (N, 2)
+    centre = cam.project(m["obj_pose"][0, :, 0, :3].numpy() + (0.0, spec.size[1] / 2, 0.0))
+    half = np.array([0.1, 0.1])
+    outline = np.stack([centre[5] - half, centre[5] + (half[0], -half[1]), centre[5] + half])
+    key = ObjectKey("box", 5, outline)
+    on_base = context(storyboard(object_keys=[key], object_paths=[ObjectPath("box", 0, N - 1, base[[0, -1]])]))
+    on_centre = context(storyboard(object_paths=[ObjectPath("box", 0, N - 1, centre[[0, -1]])]))
+    assert float(E.object_energy(m, on_base)) == pytest.approx(0.0, abs=1e-12)
+    assert float(E.object_energy(m, on_centre)) == pytest.approx((centre[0] - base[0]) @ (centre[0] - base[0]))
 
 
 # ---- gradients ---------------------------------------------------------------------------------
