@@ -9,7 +9,8 @@ Shapes for a storyboard of N frames, H agents, O objects (K anchors max):
   tr_mask  (N, H, 22)     bool
   obj2d    (N, O, 4)      object box at object-key frames: centre u, v, width, height
   obj_mask (N, O)         bool
-  objpath2d (N, O, 2)     object path targets per frame (resampled like trajectories)
+  objpath2d (N, O, 2)     object path targets per frame (resampled like trajectories), the
+                          object's base's (base_path)
   objpath_mask (N, O)     bool
   contact  (N, H, 2)      bool, hand (left, right) of agent h is told to hold something
   contact_anchor (N, H, 2) int, flat index o*K + k of the anchor held (-1 when none or a hand)
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry.polylines import resample_polyline
+from .geometry.polylines import point_polyline_distance, resample_polyline
 from .skeleton import JOINT_INDEX, NUM_JOINTS
 from .storyboard import HANDS, ObjectPath, Storyboard, Trajectory
 
@@ -54,6 +55,25 @@ def stroke_per_frame(stroke: Trajectory | ObjectPath) -> np.ndarray:
     return resample_polyline(stroke.points, stroke.end - stroke.start + 1)
 
 
+def base_path(sb: Storyboard, path: ObjectPath) -> np.ndarray:
+    """An object path's points (L, 2) as its base's (the centre of its footprint). A storyboard's
+    object path is its base's (engine.sketchify traces it so, and the model learned it so), but an
+    artist drawing in the app traces the box itself, through the middle of its outlines: a path
+    that passes the centres of the object's outlines within its span closer, by more than half
+    the object's projected half height, than it passes their bases is read as the centre's, and
+    moved down by that half height (an orthographic view: the same shift at every point). A
+    stroke's wobble is less than that margin; a box lifted straight up passes both."""
+    keys = [k for k in sb.object_keys if k.object == path.object and path.start <= k.frame <= path.end]
+    if not keys:
+        return path.points
+    spec = sb.objects[sb.object_index(path.object)].spec
+    half = sb.camera.project(np.array([0.0, spec.size[1] / 2, 0.0])) - sb.camera.project(np.zeros(3))
+    centres = np.stack([(k.outline.min(axis=0) + k.outline.max(axis=0)) / 2 for k in keys])
+    to_centres = point_polyline_distance(centres, path.points).mean()
+    to_bases = point_polyline_distance(centres - half, path.points).mean()
+    return path.points - half if to_bases - to_centres > 0.5 * np.linalg.norm(half) else path.points
+
+
 def build_controls(sb: Storyboard) -> Controls:
     n, h, o = sb.length, len(sb.agents), len(sb.objects)
     k_max = max([len(ob.spec.anchors) for ob in sb.objects] + [1])
@@ -79,7 +99,7 @@ def build_controls(sb: Storyboard) -> Controls:
         c.obj_mask[key.frame, i] = True
     for p in sb.object_paths:
         i = sb.object_index(p.object)
-        c.objpath2d[p.start:p.end + 1, i] = stroke_per_frame(p)
+        c.objpath2d[p.start:p.end + 1, i] = resample_polyline(base_path(sb, p), p.end - p.start + 1)
         c.objpath_mask[p.start:p.end + 1, i] = True
     for ct in sb.contacts:
         a, hand = sb.agent_index(ct.agent), HANDS.index(ct.hand)

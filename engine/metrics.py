@@ -226,7 +226,7 @@ def adherence(clip, storyboard, reference=None) -> dict[str, float]:
     sketched silhouette centre, its base's distance to the object path's polyline, as T2D); Anc; Pen and Pen>4cm; FootSkate and
     FootSkate@5; ContactF1, ECE, Brier (the clip's CTMC contact + carry occupancy vs the
     frames with a storyboard contact)."""
-    from .controls import build_controls
+    from .controls import base_path, build_controls
     c = build_controls(storyboard)
     joints = np.asarray(clip.joints, float)
     if joints.shape[:2] != c.kp_mask.shape[:2]:
@@ -264,8 +264,8 @@ def adherence(clip, storyboard, reference=None) -> dict[str, float]:
             base = cam.project(obj_pose[..., :3])                                   # what a path traces
             put("Obj2D", np.concatenate(
                 [np.linalg.norm(cam.project(centre) - c.obj2d[..., :2], axis=-1)[c.obj_mask]]
-                + [point_polyline_distance(base[p.start:p.end + 1, storyboard.object_index(p.object)], p.points)
-                   for p in storyboard.object_paths]))
+                + [point_polyline_distance(base[p.start:p.end + 1, storyboard.object_index(p.object)],
+                                           base_path(storyboard, p)) for p in storyboard.object_paths]))
             if reference is not None and reference.obj_pose is not None:
                 out["Obj"] = object_position_error(obj_pose, np.asarray(reference.obj_pose, float)[..., :3],
                                                    targeted)

@@ -22,22 +22,22 @@ from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 
 from ..body import BONES, body_points
 from ..camera import StoryboardCamera
+from ..controls import base_path
 from ..geometry.rotations import norm, normalize, quat_to_matrix
 from ..objects import ObjectSpec, world_to_local
-from ..rig import CHEST
 from ..skeleton import ELBOWS, HANDS, JOINT_NAMES, SHOULDERS
 from ..storyboard import HANDS as HAND_NAMES
 from ..storyboard import Storyboard
 from ..synth.props import pose_array
-from ..synth.reach import heading_of, wrap_angle, yaw_matrix
+from ..synth.reach import wrap_angle, yaw_matrix
 from ..synth.trajectory import smoothstep
-from .blend import ease_frames, ease_jumps, eased_push
+from . import held_yaw as headings
+from .blend import eased_push
 from .contacts import ContactConfig, anchor_table, arm_lengths, forward_of, object_anchors, span_weight
 from .drawn_holds import onto_drawing
 from .keys import room_from_keys
 
 _ARM = [*ELBOWS, *HANDS]
-MIN_APART = 0.3   # m between two holders' chests, under which the line between them turns too fast
 # engine.metrics' body spheres (joints, then bone midpoints) except the arms', which must touch.
 BODY_SPHERES = np.array([j not in _ARM for j in range(len(JOINT_NAMES))]
                         + [child not in _ARM for _, child in BONES])
@@ -49,12 +49,6 @@ def _body_spheres(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return points[:, :, BODY_SPHERES], radii[BODY_SPHERES]
 
 
-def _yaw_of(quat: np.ndarray) -> np.ndarray:
-    """Heading of a pose's local +X about +Y: (..., 4) wxyz -> (...)."""
-    x_axis = quat_to_matrix(quat)[..., :, 0]
-    return np.arctan2(-x_axis[..., 2], x_axis[..., 0])
-
-
 def _grounded(position: np.ndarray, config: ContactConfig) -> np.ndarray:
     """The same horizontal place (3,), resting on the ground."""
     return np.array([position[0], config.rest_height, position[2]])
@@ -64,22 +58,6 @@ def true_spans(mask: np.ndarray) -> list[tuple[int, int]]:
     """Inclusive [start, end] frame spans where mask (N,) is True."""
     edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
-
-
-def _fit_yaw(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray,
-             min_spread: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per frame, the heading that best turns the local grips onto the holding wrists (weighted
-    upright Procrustes). Upright because a yaw-only fit stays defined with both hands on one end
-    and carried boxes and tables stay level. wrists, grips (N, P, 3); held (N, P) bool.
-    Returns yaw (N,) and where it is defined (N,): two or more grips spread apart."""
-    w = held[..., None]
-    count = np.maximum(w.sum(axis=1, keepdims=True), 1)
-    p = w * (wrists - np.sum(w * wrists, axis=1, keepdims=True) / count)
-    a = grips - np.sum(w * grips, axis=1, keepdims=True) / count
-    # yaw_matrix turns (x, z) into (c x + s z, -s x + c z); maximise sum p . R a over the angle.
-    sin = np.sum(p[..., 0] * a[..., 2] - p[..., 2] * a[..., 0], axis=1)
-    cos = np.sum(p[..., 0] * a[..., 0] + p[..., 2] * a[..., 2], axis=1)
-    return np.arctan2(sin, cos), np.hypot(sin, cos) > min_spread
 
 
 def _fit_position(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray, yaw: np.ndarray) -> np.ndarray:
@@ -220,9 +198,9 @@ def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | No
     """Where object o rests on the ground over frames [first, last] according to its sketch (3,),
     or None when nothing sketched falls there. An orthographic sketch gives a grounded object's
     place exactly: each object key's silhouette centre lies on the ray through the object's centre
-    (half its height up), and an object path's end points are its base's projection at the
-    path's first and last frames, where no key is (a path an artist starts in the middle of
-    the outline is no base's). The cues in range are averaged (hand-drawn ones wobble)."""
+    (half its height up), and an object path's end points (read as its base's: base_path) are
+    the base's projection at the path's first and last frames, where no key is (an outline is the
+    surer cue: a path's start wobbles). The cues in range are averaged (hand-drawn ones wobble)."""
     obj = storyboard.objects[o]
     last = storyboard.length - 1 if last is None else last
     half = obj.spec.size[1] / 2
@@ -231,7 +209,7 @@ def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | No
               for k in storyboard.object_keys if k.object == obj.id and first <= k.frame <= last]
     if not places:   # a path's ends only where no outline is drawn (an artist starts one mid-outline)
         for path in (p for p in storyboard.object_paths if p.object == obj.id):
-            places += [cam.unproject_to_height(path.points[i], 0.0)
+            places += [cam.unproject_to_height(base_path(storyboard, path)[i], 0.0)
                        for i, frame in ((0, path.start), (-1, path.end)) if first <= frame <= last]
     return np.mean(places, axis=0) if places else None
 
@@ -242,54 +220,6 @@ def drawn_in_hands(rest: np.ndarray, held: np.ndarray, spec: ObjectSpec, camera:
     put-down elsewhere, but the artist's span a few frames off)."""
     centre = np.array([0.0, spec.size[1] / 2, 0.0])
     return bool(np.linalg.norm(camera.project(rest + centre) - camera.project(held + centre)) < max(spec.size))
-
-
-def _carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma: float) -> np.ndarray:
-    """A held object's heading (N,) turning with its holder's chest while one person alone holds it
-    (holding (N, H) bool; joints (N, H, 22, 3)), and with the line between the first two holders'
-    chests while several do, at the heading the fit gives it there for most of the frames (the
-    median turn from the mean): a yaw fitted to one person's two wrists spun the object a full
-    turn in ten frames as the wrists crossed, and one fitted to two carriers' wrists half a turn
-    and back in fifteen (their warped hands met over a canister; walking on 10 degrees apart,
-    they reached through it for its far grips, an arm 12 cm inside). Chest headings and
-    positions are smoothed over `sigma` frames. On artist_check's 100 storyboards (scenes 0-49,
-    seed 0): the deepest penetration 12.2 -> 7.8 cm (mean 1.44 -> 1.28 cm; within 2 cm 75 -> 72),
-    pops within 5 cm 63 -> 66, grips within 3 cm 100 -> 100."""
-    yaw = np.unwrap(yaw)
-    chest = gaussian_filter1d(np.unwrap(heading_of(forward_of(joints)), axis=0), sigma, axis=0, mode="nearest")  # (N, H)
-    centre = gaussian_filter1d(joints[:, :, CHEST], sigma, axis=0, mode="nearest")                # (N, H, 3)
-    holders = holding @ (1 << np.arange(holding.shape[1]))                         # (N,) who holds, as bits
-    runs = np.flatnonzero(np.diff(np.concatenate([[-1], holders, [-1]])))          # where the holders change
-    for start, stop in zip(runs[:-1], runs[1:]):
-        people = np.flatnonzero(holding[start])
-        if len(people) == 1:
-            along = chest[start:stop, people[0]]
-        elif len(people) > 1:
-            between = centre[start:stop, people[1]] - centre[start:stop, people[0]]
-            if norm(between[:, [0, 2]]).min() < MIN_APART:
-                continue   # too close together for the line between them to say a heading
-            along = np.unwrap(heading_of(between))
-        else:
-            continue
-        offset = yaw[start:stop] - along
-        mean = np.arctan2(np.mean(np.sin(offset)), np.mean(np.cos(offset)))
-        yaw[start:stop] = along + mean + np.median(wrap_angle(offset - mean))
-    return yaw
-
-
-def _eased_handovers(yaw: np.ndarray, held: np.ndarray, grips: np.ndarray, config: ContactConfig) -> np.ndarray:
-    """A held object's fitted heading (N,) (unwrapped; held, grips as in _hold_one) with its
-    jumps where a hand joins or leaves the hold eased out: the heading of two people's hands is
-    not one person's chest's, and a partner letting go of a box turned it 69 degrees in a frame.
-    (Its position's jumps are left: eased, the grips went out of the new holder's reach.)"""
-    hands = held.reshape(len(held), -1)
-    holding = hands.any(axis=1)
-    changes = (np.flatnonzero(holding[1:] & holding[:-1] & np.any(hands[1:] != hands[:-1], axis=1)) + 1).tolist()
-    if not changes:
-        return yaw
-    radius = np.max(norm(grips[..., [0, 2]]))   # how far a turn moves a grip
-    return ease_jumps(yaw[:, None], changes, lambda turn: ease_frames(
-        radius * turn, config.handover_pop, config.blend_frames, config.most_handover_frames))[:, 0]
 
 
 def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: np.ndarray,
@@ -303,7 +233,7 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
     `camera`."""
     n, h = joints.shape[:2]
     wrists = joints[:, :, list(HANDS)].reshape(n, 2 * h, 3)
-    decoded_yaw = _yaw_of(decoded[:, 3:])
+    decoded_yaw = headings.yaw_of(decoded[:, 3:])
     still_yaw = np.arctan2(np.mean(np.sin(decoded_yaw)), np.mean(np.cos(decoded_yaw)))
     spans = true_spans(held.any(axis=1))
     if not spans:  # never held: a still object where it was sketched (else decoded), on the ground
@@ -311,18 +241,18 @@ def _hold_one(joints: np.ndarray, grips: np.ndarray, held: np.ndarray, decoded: 
         return _rest_clear_of_people(pose_array(np.tile(_grounded(place, config), (n, 1)), np.full(n, still_yaw)),
                                      joints, grips, held, spec, config)
 
-    fit_yaw, defined = _fit_yaw(wrists, grips, held, config.min_spread)
+    fit_yaw, defined = headings.fit_yaw(wrists, grips, held, config.min_spread)
     # One hand cannot turn the object: keep the last defined yaw (before any, the first one).
     fit_yaw = _carried_forward(fit_yaw, defined) if defined.any() else np.full(n, still_yaw)
     holding = held.reshape(n, h, 2).any(axis=-1)                                 # (N, H)
-    fit_yaw = _carried_yaw(fit_yaw, joints, holding, config.smooth_sigma)
+    fit_yaw = headings.carried_yaw(fit_yaw, joints, holding, config.smooth_sigma, grips, held)
     fit_pos = onto_drawing(_fit_position(wrists, grips, held, fit_yaw), fit_yaw, joints, grips, held, spans, drawn,
                            paths, spec, camera, config)
     fit_pos[:, 1] = _within_vertical_reach(fit_pos[:, 1], joints, grips, held, config)
     fit_pos = _within_reach_across(fit_pos, fit_yaw, joints, grips, held, config)
     fit_pos = _clear_of_people(fit_pos, fit_yaw, spec, joints, holding, config.clear_iterations,
                                 config.held_clear_frames)
-    fit_yaw = _eased_handovers(np.unwrap(fit_yaw), held, grips, config)
+    fit_yaw = headings.eased_handovers(np.unwrap(fit_yaw), held, grips, config)
 
     # Holds fewer frames apart than a lift takes are one, and so is a hold that starts or ends that
     # close to the clip's ends: the artist's spans are a few frames off, not a drop and a pick-up
@@ -413,7 +343,7 @@ def hold_object(joints: np.ndarray, obj_pose: np.ndarray, storyboard: Storyboard
         obj = storyboard.objects[o].id
         drawn = {k.frame: (k.outline.min(axis=0) + k.outline.max(axis=0)) / 2
                  for k in storyboard.object_keys if k.object == obj}
-        paths = [(p.start, p.end, p.points) for p in storyboard.object_paths if p.object == obj]
+        paths = [(p.start, p.end, base_path(storyboard, p)) for p in storyboard.object_paths if p.object == obj]
         out[:, o] = _hold_one(joints, grips, held, obj_pose[:, o], storyboard.objects[o].spec,
                               config, rests, storyboard.camera, drawn, paths)
     return out

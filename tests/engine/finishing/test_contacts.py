@@ -10,7 +10,8 @@ from engine.body import body_points
 from engine.controls import build_controls
 from engine.finishing.blend import spike
 from engine.finishing.contacts import ContactConfig, arm_lengths, object_anchors, reach_contacts
-from engine.finishing.held import BODY_SPHERES, _within_holders_reach, _within_reach_across, _yaw_of, hold_object, step_within_reach
+from engine.finishing.held import BODY_SPHERES, _within_holders_reach, _within_reach_across, hold_object, step_within_reach
+from engine.finishing.held_yaw import carried_yaw, yaw_of
 from engine.geometry.polylines import point_polyline_distance
 from engine.metrics import anchor_error
 from engine.objects import ObjectSpec, world_to_local
@@ -18,7 +19,7 @@ from engine.skeleton import HANDS, JOINT_INDEX, bone_lengths, rest_pose
 from engine.sketchify import sketchify
 from engine.storyboard import Agent, Contact, ObjectKey, SceneObject, Storyboard
 from engine.synth import synthesize
-from engine.synth.reach import yaw_matrix
+from engine.synth.reach import wrap_angle, yaw_matrix
 
 ARMS = [(JOINT_INDEX[f"{s}_shoulder"], JOINT_INDEX[f"{s}_elbow"], JOINT_INDEX[f"{s}_wrist"]) for s in "lr"]
 
@@ -305,12 +306,12 @@ def test_one_holder_turns_the_object_with_their_chest_not_their_wrists():
     spin = np.linspace(0.0, 2 * np.pi, len(joints))            # the wrists circle each other once
     crossing = joints.copy()
     crossing[:, :, wrists] = middle + np.einsum("nij,nhkj->nhki", yaw_matrix(spin), joints[:, :, wrists] - middle)
-    yaw = np.unwrap(_yaw_of(hold_object(crossing, np.zeros((len(joints), 1, 7)), sb)[:31, 0, 3:]))
+    yaw = np.unwrap(yaw_of(hold_object(crossing, np.zeros((len(joints), 1, 7)), sb)[:31, 0, 3:]))
     assert np.ptp(yaw) < 1e-6                                  # the chest does not turn: neither does the box
     pelvis = joints[:, :, :1]
     turn = np.linspace(0.0, np.pi / 2, len(joints))            # the whole body turns a quarter
     turning = pelvis + np.einsum("nij,nhkj->nhki", yaw_matrix(turn), joints - pelvis)
-    yaw = np.unwrap(_yaw_of(hold_object(turning, np.zeros((len(joints), 1, 7)), sb)[:, 0, 3:]))
+    yaw = np.unwrap(yaw_of(hold_object(turning, np.zeros((len(joints), 1, 7)), sb)[:, 0, 3:]))
     np.testing.assert_allclose(yaw[30] - yaw[0], turn[30], atol=0.05)
 
 
@@ -329,18 +330,18 @@ def test_two_carriers_turn_the_object_with_the_line_between_them_not_their_wrist
     shared = np.flatnonzero(both)
     window = shared[len(shared) // 2 - 7:len(shared) // 2 + 8]
     wrists = list(HANDS)
-    base = np.unwrap(_yaw_of(hold_object(joints, pose, sb)[:, 0, 3:]))
+    base = np.unwrap(yaw_of(hold_object(joints, pose, sb)[:, 0, 3:]))
     twisted = joints.copy()
     centre = joints[window][:, :, wrists].mean(axis=(1, 2))[:, None, None]          # (15, 1, 1, 3)
     spin = np.pi * np.sin(np.pi * np.arange(1, 16) / 16)
     twisted[window[:, None], :, wrists] = np.swapaxes(
         centre + np.einsum("nij,nhkj->nhki", yaw_matrix(spin), joints[window][:, :, wrists] - centre), 1, 2)
-    yaw = np.unwrap(_yaw_of(hold_object(twisted, pose, sb)[:, 0, 3:]))
+    yaw = np.unwrap(yaw_of(hold_object(twisted, pose, sb)[:, 0, 3:]))
     assert np.abs(yaw - base)[window].max() < 0.15
     middle = joints[shared][:, :, wrists].mean(axis=(0, 1, 2))
     turn = np.linspace(0.0, np.pi / 2, n)
     turning = middle + np.einsum("nij,nhkj->nhki", yaw_matrix(turn), joints - middle)
-    yaw = np.unwrap(_yaw_of(hold_object(turning, pose, sb)[:, 0, 3:]))
+    yaw = np.unwrap(yaw_of(hold_object(turning, pose, sb)[:, 0, 3:]))
     np.testing.assert_allclose((yaw - base)[shared], turn[shared], atol=0.1)
 
 
@@ -453,7 +454,7 @@ def test_a_box_handed_over_turns_smoothly_as_hands_join_and_leave(seed):
     turned = joints.copy()
     turned[start:end + 1, 1, list(HANDS)] = centre[start:end + 1] + np.einsum(
         "ij,nkj->nki", yaw_matrix(np.radians(90.0)), joints[start:end + 1, 1, list(HANDS)] - centre[start:end + 1])
-    yaw = np.unwrap(_yaw_of(hold_object(turned, pose, sb)[:, 0, 3:]))
+    yaw = np.unwrap(yaw_of(hold_object(turned, pose, sb)[:, 0, 3:]))
     grip = np.max(np.linalg.norm(sb.objects[0].spec.anchors[:, [0, 2]], axis=-1))
     jolt = grip * np.abs(yaw[2:] - 2 * yaw[1:-1] + yaw[:-2]) / 2        # a grip's spike off its neighbours
     assert jolt.max() < 0.009                                        # 1.3 cm, eased at once
@@ -592,3 +593,18 @@ def test_a_held_object_follows_its_drawn_path():
     off = point_polyline_distance(sb.camera.project(after[inside, 0, :3]), path.points)
     assert point_polyline_distance(seen[inside], path.points).mean() > 0.04
     assert off.mean() < 0.01 and off.max() < 0.03   # (the reach bands after it keep some of the gait's bob)
+
+
+@pytest.mark.parametrize("fitted, kept", [(np.pi / 2, False), (0.3, True)])
+def test_a_shared_object_faces_each_holder_with_their_grips(fitted, kept):
+    """Two carriers facing each other along x, A holding a canister's -x grips and B its +x ones:
+    wrists that fit it a quarter turn round would have each reach across it for the far side, so
+    each one's grips face them instead; a fit within FACING_SLACK of that stays as it is."""
+    n, spec = 20, ObjectSpec("canister")
+    people = [rest_pose() @ yaw_matrix(np.array(turn)).T + (x, 0.0, 0.0) for turn, x in ((np.pi / 2, -0.6), (-np.pi / 2, 0.6))]
+    joints = np.repeat(np.stack(people)[None], n, axis=0)                         # (N, 2, 22, 3)
+    grips, held = np.zeros((n, 4, 3)), np.ones((n, 4), bool)
+    sides = np.argsort(spec.anchors[:, 0])                                        # the -x grips first
+    grips[:] = spec.anchors[sides]
+    yaw = carried_yaw(np.full(n, fitted), joints, held.reshape(n, 2, 2).any(-1), 1.5, grips, held)
+    np.testing.assert_allclose(wrap_angle(yaw), fitted if kept else 0.0, atol=1e-6)
