@@ -1,6 +1,7 @@
 """Which way a held object faces (its yaw about +Y, radians): fitted to the holding wrists, then
 turning with its holder's chest, or with the line between two holders, each holder's grips on
-their side, and eased where hands join or leave the hold (held.py places it)."""
+their side (a holder's left hand's on their left), and eased where hands join or leave the hold
+(held.py places it)."""
 from __future__ import annotations
 
 import numpy as np
@@ -38,13 +39,17 @@ def fit_yaw(wrists: np.ndarray, grips: np.ndarray, held: np.ndarray,
     return np.arctan2(sin, cos), np.hypot(sin, cos) > min_spread
 
 
-def _grips_apart(grips: np.ndarray, held: np.ndarray, a: int, b: int) -> np.ndarray | None:
-    """The horizontal vector (3,), in the object's frame, from the grips person a holds to those
-    person b holds over some frames (grips (M, 2H, 3) local, held (M, 2H)); None where their grips
-    lie within 5 cm of each other (one handle shared: no side is either's)."""
-    mine = held.reshape(len(held), -1, 2)
-    centres = [np.sum(grips.reshape(mine.shape + (3,))[:, p] * mine[:, p, :, None], axis=(0, 1))
-               / max(mine[:, p].sum(), 1) for p in (a, b)]
+def _grips_apart(grips: np.ndarray, held: np.ndarray, first: list[int], second: list[int]) -> np.ndarray | None:
+    """The horizontal vector (3,), in the object's frame, from the grips the hands `first` hold to
+    those the hands `second` hold over some frames (hands index grips (M, 2H, 3) local and held
+    (M, 2H)); None where either holds nothing or their grips lie within 5 cm of each other (one
+    handle shared: no side is either's)."""
+    centres = []
+    for hands in (first, second):
+        count = held[:, hands].sum()
+        if not count:
+            return None
+        centres.append(np.sum(grips[:, hands] * held[:, hands, None], axis=(0, 1)) / count)
     apart = (centres[1] - centres[0]) * (1.0, 0.0, 1.0)
     return apart if norm(apart) > 0.05 else None
 
@@ -65,7 +70,9 @@ def carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma:
     held (N, 2H), as in held.py), each holder's grips face them instead: a canister whose wrists'
     fit turned it a quarter round had a carrier reach across its top for the far grips, a forearm
     8.2 cm inside (0.5 cm so; artist_check's 3 x 100 storyboards: within 2 cm 270 -> 271, grips
-    within 3 cm 295 -> 296, nothing else changed)."""
+    within 3 cm 295 -> 296, nothing else changed). So for one holder whose two hands hold apart:
+    the left hand's grip on their left (crossed hands, a box turned half round; pops within 5 cm
+    269 -> 271 of 300, grips and penetration as many)."""
     yaw = np.unwrap(yaw)
     chest = gaussian_filter1d(np.unwrap(heading_of(forward_of(joints)), axis=0), sigma, axis=0, mode="nearest")  # (N, H)
     centre = gaussian_filter1d(joints[:, :, CHEST], sigma, axis=0, mode="nearest")                # (N, H, 3)
@@ -85,9 +92,13 @@ def carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma:
         offset = yaw[start:stop] - along
         mean = np.arctan2(np.mean(np.sin(offset)), np.mean(np.cos(offset)))
         yaw[start:stop] = along + mean + np.median(wrap_angle(offset - mean))
-        apart = _grips_apart(grips[start:stop], held[start:stop], *people[:2]) if len(people) > 1 else None
+        # Which way the grips should go: from the first holder's to the second's along the line
+        # between them, or from one holder's left hand's to their right's, to their right.
+        a, b = people[:2] if len(people) > 1 else (people[0], people[0])
+        first, second = ([2 * a, 2 * a + 1], [2 * b, 2 * b + 1]) if a != b else ([2 * a], [2 * a + 1])
+        apart = _grips_apart(grips[start:stop], held[start:stop], first, second)
         if apart is not None:
-            facing = along - heading_of(apart)
+            facing = along - (0.0 if a != b else np.pi / 2) - heading_of(apart)
             if abs(np.median(wrap_angle(yaw[start:stop] - facing))) > FACING_SLACK:
                 yaw[start:stop] = facing
     return yaw

@@ -283,7 +283,8 @@ def test_a_box_handed_over_is_pushed_out_of_the_giver_who_let_go_of_it():
 def test_a_held_box_whose_fit_jumps_is_smoothed_round_its_holder_not_through_the_hips():
     """Where a second holder takes hold, the hands' fit of a box jumps (by 18 cm in a frame); the
     carried path smoothed over it passed through the hips. Here the fit jumps from one side of
-    the holder to the other, both clear of the body."""
+    the holder to the other, both clear of the body (held by its ends, the hands uncrossed: the box
+    turned half round, its grip at local -x on the holder's left)."""
     n, jump = 30, 15
     sb = Storyboard(length=n, agents=[Agent("A")], objects=[SceneObject("box", ObjectSpec("box"))],
                     contacts=[Contact("A", "left", 0, n - 1, "box", 0), Contact("A", "right", 0, n - 1, "box", 2)])
@@ -292,7 +293,7 @@ def test_a_held_box_whose_fit_jumps_is_smoothed_round_its_holder_not_through_the
     joints = np.tile(body, (n, 1, 1, 1)).reshape(n, 1, 22, 3)
     for frames, side in ((slice(0, jump), 1.0), (slice(jump, n), -1.0)):
         base = body[0] + (side * 0.45, -spec.size[1] / 2, 0.0)          # the box beside the hips
-        joints[frames, 0, list(HANDS)] = base + spec.anchors[[0, 2]]
+        joints[frames, 0, list(HANDS)] = base + spec.anchors[[0, 2]] @ yaw_matrix(np.array(np.pi)).T
     held = hold_object(joints, np.zeros((n, 1, 7)), sb)
     points, radii = body_points(joints[:, 0])
     local = world_to_local(points[:, BODY_SPHERES], held[:, 0])
@@ -608,3 +609,16 @@ def test_a_shared_object_faces_each_holder_with_their_grips(fitted, kept):
     grips[:] = spec.anchors[sides]
     yaw = carried_yaw(np.full(n, fitted), joints, held.reshape(n, 2, 2).any(-1), 1.5, grips, held)
     np.testing.assert_allclose(wrap_angle(yaw), fitted if kept else 0.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("fitted, kept", [(0.0, False), (np.pi - 0.3, True)])
+def test_one_holder_holds_an_object_left_hand_on_the_left(fitted, kept):
+    """One person facing +z (their left is +x) holding a box by its ends, the left hand on its
+    local -x grip: a fit that crosses the hands (that grip on their right) turns the box half
+    round; one within FACING_SLACK of uncrossed stays as it is."""
+    n, spec = 20, ObjectSpec("box")
+    joints = np.repeat(rest_pose()[None, None], n, axis=0)                        # (N, 1, 22, 3)
+    grips, held = np.zeros((n, 2, 3)), np.ones((n, 2), bool)
+    grips[:] = spec.anchors[[0, 2]]                                               # local -x, +x
+    yaw = carried_yaw(np.full(n, fitted), joints, held[:, None].any(-1), 1.5, grips, held)
+    np.testing.assert_allclose(wrap_angle(yaw - (fitted if kept else np.pi)), 0.0, atol=1e-6)
