@@ -223,9 +223,9 @@ def adherence(clip, storyboard, reference=None) -> dict[str, float]:
     Pelvis are the mean distances of all joints and of the pelvis to it); fail@0.2 / fail@0.5
     (this sequence's 0/1 failure flags on the 3D errors, or the 2D ones without a reference;
     their mean over sequences is the failure rate); Obj2D (projected object centre vs the
-    sketched silhouette centre, its base's distance to the object path's polyline, as T2D); Anc; Pen and Pen>4cm; FootSkate and
-    FootSkate@5; ContactF1, ECE, Brier (the clip's CTMC contact + carry occupancy vs the
-    frames with a storyboard contact)."""
+    sketched silhouette centre, and its base's distance to the object path's polyline, as T2D);
+    Anc; Pen and Pen>4cm; FootSkate and FootSkate@5; ContactF1, ECE, Brier (the clip's CTMC
+    contact + carry occupancy vs the frames with a storyboard contact)."""
     from .controls import base_path, build_controls
     c = build_controls(storyboard)
     joints = np.asarray(clip.joints, float)

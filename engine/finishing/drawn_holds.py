@@ -28,7 +28,7 @@ def onto_drawing(pos: np.ndarray, yaw: np.ndarray, joints: np.ndarray, grips: np
     drawn_falloff frames beyond them. Fitted to the wrists alone, a box's base was 6.0 cm off its
     path on average (17 cm for one frame in twenty) and its centre 5.4 cm off its outlines, while
     an artist's strokes are within 2 cm of where it is (artist_check's 3 x 100 storyboards); moved
-    so, 4.6 and 4.3 cm, as far as no held grip goes beyond its holder's reach, or further beyond
+    so, 4.5 and 4.3 cm, as far as no held grip goes beyond its holder's reach, or further beyond
     it than it was (_reachable_share): where the holders stand off the drawing, the arms cannot
     close the gap (unbounded, 3.4 cm, but 2 more holds lost their grips). joints (N, H, 22, 3), grips
     (N, 2H, 3) local, held (N, 2H) as in held._hold_one; spans: the inclusive frame spans of its holds."""

@@ -573,10 +573,12 @@ def test_a_held_object_goes_towards_its_outline_only_as_far_as_its_holders_reach
     assert 0.0 < moved[0] < 0.3
 
     def beyond_reach(pose):   # how far each held grip lies beyond `reach` of its holder's arm (N, contacts)
-        anchors, arms = object_anchors(pose, sb)[:, 0], arm_lengths(joints)
-        return np.stack([np.linalg.norm(anchors[:, c.anchor] - joints[:, sb.agent_index(c.agent), ARMS[int(c.hand == "right")][0]],
-                                        axis=-1) - config.reach * arms[:, sb.agent_index(c.agent), int(c.hand == "right")]
-                         for c in sb.contacts], 1)[span[0]:span[1] + 1]
+        anchors, arms, out = object_anchors(pose, sb)[:, 0], arm_lengths(joints), []
+        for c in sb.contacts:
+            a, side = sb.agent_index(c.agent), int(c.hand == "right")
+            shoulder = joints[:, a, ARMS[side][0]]
+            out.append(np.linalg.norm(anchors[:, c.anchor] - shoulder, axis=-1) - config.reach * arms[:, a, side])
+        return np.stack(out, 1)[span[0]:span[1] + 1]
     assert np.all(beyond_reach(after) <= np.maximum(beyond_reach(before), 0.0) + 0.005)
 
 
@@ -602,7 +604,8 @@ def test_a_shared_object_faces_each_holder_with_their_grips(fitted, kept):
     wrists that fit it a quarter turn round would have each reach across it for the far side, so
     each one's grips face them instead; a fit within FACING_SLACK of that stays as it is."""
     n, spec = 20, ObjectSpec("canister")
-    people = [rest_pose() @ yaw_matrix(np.array(turn)).T + (x, 0.0, 0.0) for turn, x in ((np.pi / 2, -0.6), (-np.pi / 2, 0.6))]
+    people = [rest_pose() @ yaw_matrix(np.array(turn)).T + (x, 0.0, 0.0)
+              for turn, x in ((np.pi / 2, -0.6), (-np.pi / 2, 0.6))]
     joints = np.repeat(np.stack(people)[None], n, axis=0)                         # (N, 2, 22, 3)
     grips, held = np.zeros((n, 4, 3)), np.ones((n, 4), bool)
     sides = np.argsort(spec.anchors[:, 0])                                        # the -x grips first

@@ -189,7 +189,8 @@ def test_no_constraints_give_zero():
 
 def test_object_path_is_the_base_and_a_key_the_silhouette_centre():
     """An object path traces the object's base (engine.sketchify), an object key's outline its
-    middle: both met give no energy, the path put through the centre does."""
+    middle: both met give no energy; the path put through the centre, with no outline to read it
+    by (engine.controls.base_path), does."""
     m = motion(box_at=(0.2, 0.0, 0.5))
     cam, spec = Storyboard().camera, ObjectSpec("box")
     base = cam.project(m["obj_pose"][0, :, 0, :3].numpy())                     # (N, 2)
