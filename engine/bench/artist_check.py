@@ -9,8 +9,9 @@ scenes popped over 5 cm in 19 of 100 storyboards against 12; `--harsh` draws the
 artist_sketch.HARSH), and prints, for each of ANIMATOR_TARGETS, how many
 storyboards meet it, the mean and the worst, and how far the held object drops where a hand lets
 go of it for good (the held-out motion sets it down), and what Wrist@key is made of
-(wrist_key_parts), and how many pop by a jump beyond both neighbouring steps alone (largest_jump:
-the issue's wording; Pop also counts spikes). About 1.5 s a storyboard on 2 cores.
+(wrist_key_parts), how many pop by a jump beyond both neighbouring steps alone (largest_jump:
+the issue's wording; Pop also counts spikes), and how far a held object is from its drawn path
+and outlines (held_off_drawing). About 0.4 s a storyboard on 2 cores.
 """
 from __future__ import annotations
 
@@ -19,11 +20,13 @@ import argparse
 import numpy as np
 
 from ..artist_sketch import HARSH, ArtistConfig
+from ..controls import base_path
 from ..finishing import lasting_as_long
 from ..finishing.contacts import ContactConfig
 from ..finishing.held import drawn_in_hands, sketched_rest, true_spans
 from ..finishing.steady import step_jumps
 from ..generate import generate
+from ..geometry.polylines import point_polyline_distance
 from ..models.bundle import load_default
 from ..sampling.config import sampler_config
 from .animator import ANIMATOR_TARGETS, WRISTS
@@ -83,6 +86,31 @@ def wrist_key_parts(joints: np.ndarray, reference: np.ndarray, storyboard) -> tu
     return tuple(np.mean(parts, axis=0)) if parts else None
 
 
+def held_off_drawing(clip, storyboard) -> tuple[list[float], list[float]]:
+    """Where a held object is against what the artist drew of it (m, sketch plane): its base's
+    distance to its drawn path (as the finishing reads it: engine.controls.base_path) at every
+    held frame of the path's span, and its centre's to the centre of each outline drawn at a
+    held frame (engine.finishing.drawn_holds)."""
+    if clip.obj_pose is None:
+        return [], []
+    pose, cam = np.asarray(clip.obj_pose, float), storyboard.camera
+    held = np.zeros((len(pose), len(storyboard.objects)), bool)
+    for c in storyboard.contacts:
+        if c.object is not None:
+            held[c.start:c.end + 1, storyboard.object_index(c.object)] = True
+    path_offs, outline_offs = [], []
+    for p in storyboard.object_paths:
+        o = storyboard.object_index(p.object)
+        frames = p.start + np.flatnonzero(held[p.start:p.end + 1, o])
+        path_offs += point_polyline_distance(cam.project(pose[frames, o, :3]), base_path(storyboard, p)).tolist()
+    for k in storyboard.object_keys:
+        o = storyboard.object_index(k.object)
+        if held[k.frame, o]:
+            centre = pose[k.frame, o, :3] + (0.0, storyboard.objects[o].spec.size[1] / 2, 0.0)
+            outline_offs.append(float(np.linalg.norm(cam.project(centre) - (k.outline.min(0) + k.outline.max(0)) / 2)))
+    return path_offs, outline_offs
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--first", type=int, default=20, help="first held-out scene (bench uses 0-9)")
@@ -97,12 +125,14 @@ def main(argv: list[str] | None = None) -> int:
                             drawing=args.drawing, artist=HARSH if args.harsh else ArtistConfig())
     artist = next(p for p in build_protocols(config) if p.name == "artist")
     items = artist.items[2 * args.first:]
-    bundle, rows, drops, wrists, jumps = load_default(), [], [], [], []
+    bundle, rows, drops, wrists, jumps, off_path, off_outline = load_default(), [], [], [], [], [], []
     for item in items:
         clip = generate(item.storyboard, sampler_config(seed=args.seed), bundle, quiet=True).clips[0]
         rows.append(sample_metrics(clip, item))
         jumps.append(largest_jump(np.asarray(clip.joints, float)))
         drops += release_drops(clip, item.storyboard)
+        path_offs, outline_offs = held_off_drawing(clip, item.storyboard)
+        off_path, off_outline = off_path + path_offs, off_outline + outline_offs
         wrists.append(wrist_key_parts(np.asarray(clip.joints, float), np.asarray(item.reference.joints, float),
                                       item.storyboard))
     print(f"{len(items)} artist-style storyboards (scenes {args.first}-{args.first + args.scenes - 1}, drawing "
@@ -122,6 +152,10 @@ def main(argv: list[str] | None = None) -> int:
     if drops:
         print(f"releases   dropped over {DROP:g} m: {np.sum(np.array(drops) > DROP):3d}/{len(drops)}   "
               f"mean {np.mean(drops):.4f}   worst {np.max(drops):.3f}")
+    for name, offs, share in (("off path", off_path, 95), ("off outline", off_outline, 90)):
+        if offs:
+            print(f"held object {name} (sketch plane, {len(offs)} held {'frames' if share == 95 else 'keys'}): "
+                  f"mean {np.mean(offs):.4f}   p{share} {np.percentile(offs, share):.4f}   worst {np.max(offs):.3f}")
     return 0
 
 

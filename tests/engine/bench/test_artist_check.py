@@ -1,15 +1,16 @@
 """The artist-style check (engine.bench.artist_check): a put-down is told from a drop, a
-wrist's miss at its key is told apart (the drawing's, the sketch plane's, depth), and a jump from a
-spike."""
+wrist's miss at its key is told apart (the drawing's, the sketch plane's, depth), a jump from a
+spike, and a held object's distance to its drawing is measured while it is held."""
 import numpy as np
 
 from engine.bench.animator import pop
-from engine.bench.artist_check import largest_jump, release_drops, wrist_key_parts
+from engine.bench.artist_check import held_off_drawing, largest_jump, release_drops, wrist_key_parts
 from engine.camera import StoryboardCamera
 from engine.clip import MotionClip
+from engine.geometry.polylines import point_polyline_distance
 from engine.objects import ObjectSpec
 from engine.skeleton import JOINT_INDEX
-from engine.storyboard import Agent, Contact, Keypose, ObjectKey, SceneObject, Storyboard
+from engine.storyboard import Agent, Contact, Keypose, ObjectKey, ObjectPath, SceneObject, Storyboard
 
 N = 30
 
@@ -84,3 +85,20 @@ def test_a_jump_is_a_step_beyond_both_neighbouring_steps_and_a_spike_is_none():
     spiked[15, 0, 3, 1] += 0.1                               # one joint 10 cm up for a frame, and back
     assert np.isclose(pop(spiked), 0.1)
     assert largest_jump(spiked) < 1e-9
+
+
+def test_a_held_object_off_its_drawing_is_measured_in_the_sketch_plane_while_held():
+    """The box held over frames 5-14 and 18-22: its base 10 cm above its drawn path there (the
+    frames it is not held do not count), and its centre on the outline drawn at frame 8."""
+    clip, sb = carried(np.full(N, 0.1))
+    cam, size = sb.camera, sb.objects[0].spec.size
+    ground = cam.project(np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))     # the path along x, on the floor
+    sb.object_paths = [ObjectPath("box", 0, N - 1, ground)]
+    centre = cam.project(np.array([0.0, 0.1 + size[1] / 2, 0.0]))
+    sb.object_keys = [ObjectKey("box", 8, centre + np.array([[-0.2, -0.1], [0.2, -0.1], [0.2, 0.1], [-0.2, 0.1]]))]
+    path_offs, outline_offs = held_off_drawing(clip, sb)
+    assert len(path_offs) == 15 and len(outline_offs) == 1
+    above = point_polyline_distance(cam.project(np.array([[0.0, 0.1, 0.0]])), ground)[0]
+    assert 0.08 < above < 0.1                                                # 10 cm up, seen from above
+    np.testing.assert_allclose(path_offs, above, rtol=1e-6)   # (a clip stores float32)
+    np.testing.assert_allclose(outline_offs, 0.0, atol=1e-6)
