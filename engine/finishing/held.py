@@ -209,7 +209,8 @@ def sketched_rest(storyboard: Storyboard, o: int, first: int = 0, last: int | No
               for k in storyboard.object_keys if k.object == obj.id and first <= k.frame <= last]
     if not places:   # a path's ends only where no outline is drawn (an artist starts one mid-outline)
         for path in (p for p in storyboard.object_paths if p.object == obj.id):
-            places += [cam.unproject_to_height(base_path(storyboard, path)[i], 0.0)
+            points = base_path(storyboard, path)
+            places += [cam.unproject_to_height(points[i], 0.0)
                        for i, frame in ((0, path.start), (-1, path.end)) if first <= frame <= last]
     return np.mean(places, axis=0) if places else None
 

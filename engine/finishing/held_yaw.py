@@ -92,13 +92,14 @@ def carried_yaw(yaw: np.ndarray, joints: np.ndarray, holding: np.ndarray, sigma:
         offset = yaw[start:stop] - along
         mean = np.arctan2(np.mean(np.sin(offset)), np.mean(np.cos(offset)))
         yaw[start:stop] = along + mean + np.median(wrap_angle(offset - mean))
-        # Which way the grips should go: from the first holder's to the second's along the line
-        # between them, or from one holder's left hand's to their right's, to their right.
-        a, b = people[:2] if len(people) > 1 else (people[0], people[0])
-        first, second = ([2 * a, 2 * a + 1], [2 * b, 2 * b + 1]) if a != b else ([2 * a], [2 * a + 1])
+        if len(people) > 1:   # from the first holder's grips to the second's: along the line between them
+            a, b = people[:2]
+            first, second, turn = [2 * a, 2 * a + 1], [2 * b, 2 * b + 1], 0.0
+        else:                 # from the holder's left hand's grip to their right's: to their right
+            first, second, turn = [2 * people[0]], [2 * people[0] + 1], np.pi / 2
         apart = _grips_apart(grips[start:stop], held[start:stop], first, second)
         if apart is not None:
-            facing = along - (0.0 if a != b else np.pi / 2) - heading_of(apart)
+            facing = along - turn - heading_of(apart)
             if abs(np.median(wrap_angle(yaw[start:stop] - facing))) > FACING_SLACK:
                 yaw[start:stop] = facing
     return yaw
